@@ -2,4 +2,21 @@
 //! (intrinsics + camera-to-world poses, one documented convention) and linear-radiance images with validity
 //! masks. No optimisation, no tracing.
 
+pub mod atomic;
 pub mod camera;
+pub mod colmap;
+pub mod error;
+pub mod image_header;
+pub mod matterport;
+pub mod mesh;
+pub mod obj;
+pub mod photo;
+pub mod ply;
+pub mod pose;
+pub mod scan;
+pub mod transforms;
+
+pub use atomic::write_atomic;
+pub use error::IngestError;
+pub use mesh::Mesh;
+pub use scan::{GroupBy, ObjectInfo, Scan, ScanFormat, View, load_scan, objects_seen_by_no_camera};

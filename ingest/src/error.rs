@@ -1,0 +1,65 @@
+//! The crate's error type. Every variant names the file it is about and, where one exists, the line or the
+//! element index, so a user can go straight to the offending input.
+
+use std::path::PathBuf;
+
+/// Errors from reading or writing scan files.
+#[derive(Debug, thiserror::Error)]
+pub enum IngestError {
+    /// The operating system refused an operation on `path`.
+    #[error("{path}: {source}", path = .path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file as a whole is malformed (no finer location applies).
+    #[error("{path}: {message}", path = .path.display())]
+    Format { path: PathBuf, message: String },
+    /// A text file is malformed at a 1-based line.
+    #[error("{path}:{line}: {message}", path = .path.display())]
+    Line { path: PathBuf, line: usize, message: String },
+    /// An element (PLY vertex/face, COLMAP image, JSON frame, ...) is malformed; `index` is 0-based.
+    #[error("{path}: {element} {index}: {message}", path = .path.display())]
+    Element { path: PathBuf, element: String, index: usize, message: String },
+    /// A file listed by another file does not exist.
+    #[error("{listed_in}: lists image {missing}, which does not exist", listed_in = .listed_in.display(), missing = .missing.display())]
+    MissingImage { listed_in: PathBuf, missing: PathBuf },
+    /// An image's pixel size disagrees with the calibration that describes it.
+    #[error("{path}: image is {width}x{height} but {expected}", path = .path.display())]
+    ImageSize { path: PathBuf, width: u32, height: u32, expected: String },
+    /// The scan directory does not hold a layout we know.
+    #[error("{dir}: {message}", dir = .dir.display())]
+    Layout { dir: PathBuf, message: String },
+}
+
+impl IngestError {
+    /// Wraps an I/O error with the path it concerns.
+    #[must_use]
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Self::Io { path: path.into(), source }
+    }
+
+    /// A whole-file format error.
+    #[must_use]
+    pub fn format(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Self::Format { path: path.into(), message: message.into() }
+    }
+
+    /// A format error at a 1-based line of a text file.
+    #[must_use]
+    pub fn line(path: impl Into<PathBuf>, line: usize, message: impl Into<String>) -> Self {
+        Self::Line { path: path.into(), line, message: message.into() }
+    }
+
+    /// A format error at a 0-based element index.
+    #[must_use]
+    pub fn element(
+        path: impl Into<PathBuf>,
+        element: impl Into<String>,
+        index: usize,
+        message: impl Into<String>,
+    ) -> Self {
+        Self::Element { path: path.into(), element: element.into(), index, message: message.into() }
+    }
+}

@@ -1,0 +1,171 @@
+//! On-disk cache of prepared views in a run directory: `<name>.exr` holds channels R, G, B (32-bit float,
+//! linear radiance) and `mask` (32-bit float, exactly 0 or 1); `<name>.json` is the manifest entry (camera of
+//! the prepared image, size, valid-pixel count). Both are written atomically with [`crate::write_atomic`]
+//! (temporary file in the same directory, fsync, rename), EXR first, so a manifest entry only exists for a
+//! complete image.
+
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::image_io::{DecodedImage, read_image};
+use super::{LinearImage, PhotoError};
+use crate::camera::Camera;
+
+/// `format` field of every manifest entry.
+const MANIFEST_FORMAT: &str = "ipt-photo-cache";
+/// Bumped whenever the cache layout changes; older entries are rejected, not misread.
+const MANIFEST_VERSION: u32 = 1;
+
+/// One manifest entry (`<name>.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ManifestEntry {
+    pub format: String,
+    pub version: u32,
+    pub name: String,
+    /// File name of the image, relative to the manifest's directory.
+    pub image: String,
+    pub width: u32,
+    pub height: u32,
+    pub valid_pixels: usize,
+    /// Camera of the cached (undistorted, downscaled) image.
+    pub camera: Camera,
+}
+
+fn check_name(dir: &Path, name: &str) -> Result<(), PhotoError> {
+    let ok =
+        !name.is_empty() && name != "." && name != ".." && !name.starts_with('.') && !name.contains(['/', '\\', '\0']);
+    if ok {
+        Ok(())
+    } else {
+        Err(PhotoError::Manifest {
+            path: dir.join(name),
+            message: format!("cache name {name:?} must be a plain file name (no separators, no leading dot)"),
+        })
+    }
+}
+
+/// Paths of the image and manifest of cache entry `name` in `dir`.
+#[must_use]
+pub fn cached_paths(dir: &Path, name: &str) -> (PathBuf, PathBuf) {
+    (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")))
+}
+
+/// Encodes `img` as an EXR (R, G, B, mask; 32-bit float, lossless compression).
+pub fn encode_exr(path: &Path, img: &LinearImage) -> Result<Vec<u8>, PhotoError> {
+    use exr::prelude::*;
+    let n = img.pixel_count();
+    if img.rgb.len() != 3 * n || img.mask.len() != n {
+        return Err(PhotoError::Manifest {
+            path: path.to_path_buf(),
+            message: "image buffers do not match its size".into(),
+        });
+    }
+    let channel = |c: usize| img.rgb.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
+    let mask: Vec<f32> = img.mask.iter().map(|&m| if m != 0 { 1.0 } else { 0.0 }).collect();
+    let channels = AnyChannels::sort(
+        vec![
+            AnyChannel::new("R", FlatSamples::F32(channel(0))),
+            AnyChannel::new("G", FlatSamples::F32(channel(1))),
+            AnyChannel::new("B", FlatSamples::F32(channel(2))),
+            AnyChannel::new("mask", FlatSamples::F32(mask)),
+        ]
+        .into(),
+    );
+    let size = (img.width as usize, img.height as usize);
+    let image = Image::from_layer(Layer::new(size, LayerAttributes::default(), Encoding::FAST_LOSSLESS, channels));
+    let mut out = Cursor::new(Vec::new());
+    image.write().to_buffered(&mut out).map_err(|e| PhotoError::Write {
+        path: path.to_path_buf(),
+        source: crate::error::IngestError::format(path, e.to_string()),
+    })?;
+    Ok(out.into_inner())
+}
+
+/// Writes `img` to `path` as an EXR (R, G, B, mask), atomically.
+pub fn write_exr(path: &Path, img: &LinearImage) -> Result<(), PhotoError> {
+    let bytes = encode_exr(path, img)?;
+    crate::write_atomic(path, &bytes).map_err(|source| PhotoError::Write { path: path.to_path_buf(), source })
+}
+
+/// Caches a prepared view as `<dir>/<name>.exr` + `<dir>/<name>.json` (creating `dir` if needed). Returns the
+/// path of the EXR.
+pub fn write_cached(dir: &Path, name: &str, camera: &Camera, img: &LinearImage) -> Result<PathBuf, PhotoError> {
+    check_name(dir, name)?;
+    let (exr_path, json_path) = cached_paths(dir, name);
+    if (camera.width, camera.height) != (img.width, img.height) {
+        return Err(PhotoError::WrongSize {
+            path: exr_path,
+            expected: (camera.width, camera.height),
+            found: (img.width, img.height),
+        });
+    }
+    std::fs::create_dir_all(dir)
+        .map_err(|e| PhotoError::Write { path: dir.to_path_buf(), source: crate::error::IngestError::io(dir, e) })?;
+    write_exr(&exr_path, img)?;
+    let entry = ManifestEntry {
+        format: MANIFEST_FORMAT.into(),
+        version: MANIFEST_VERSION,
+        name: name.into(),
+        image: format!("{name}.exr"),
+        width: img.width,
+        height: img.height,
+        valid_pixels: img.valid_count(),
+        camera: *camera,
+    };
+    let json = serde_json::to_vec_pretty(&entry)
+        .map_err(|e| PhotoError::Manifest { path: json_path.clone(), message: e.to_string() })?;
+    crate::write_atomic(&json_path, &json).map_err(|source| PhotoError::Write { path: json_path, source })?;
+    Ok(exr_path)
+}
+
+/// Reads the manifest entry `<dir>/<name>.json`.
+pub fn read_manifest(dir: &Path, name: &str) -> Result<ManifestEntry, PhotoError> {
+    check_name(dir, name)?;
+    let (_, json_path) = cached_paths(dir, name);
+    let text = std::fs::read(&json_path).map_err(|source| PhotoError::Read { path: json_path.clone(), source })?;
+    let entry: ManifestEntry = serde_json::from_slice(&text)
+        .map_err(|e| PhotoError::Manifest { path: json_path.clone(), message: e.to_string() })?;
+    if entry.format != MANIFEST_FORMAT || entry.version != MANIFEST_VERSION {
+        return Err(PhotoError::Manifest {
+            path: json_path,
+            message: format!(
+                "format {:?} version {} is not {MANIFEST_FORMAT:?} version {MANIFEST_VERSION}",
+                entry.format, entry.version
+            ),
+        });
+    }
+    if (entry.camera.width, entry.camera.height) != (entry.width, entry.height) {
+        return Err(PhotoError::Manifest { path: json_path, message: "camera size differs from image size".into() });
+    }
+    Ok(entry)
+}
+
+/// Reads a view cached by [`write_cached`]: its camera and image (with mask). Errors name the manifest or
+/// image file and say what is wrong (missing, undecodable, size differing from the manifest).
+pub fn read_cached(dir: &Path, name: &str) -> Result<(Camera, LinearImage), PhotoError> {
+    let entry = read_manifest(dir, name)?;
+    let (_, json_path) = cached_paths(dir, name);
+    if entry.image.contains(['/', '\\']) || entry.image.starts_with('.') {
+        return Err(PhotoError::Manifest {
+            path: json_path,
+            message: format!("image {:?} is not a plain file name", entry.image),
+        });
+    }
+    let exr_path = dir.join(&entry.image);
+    let img = match read_image(&exr_path)? {
+        DecodedImage::Linear(img) => img,
+        DecodedImage::Display(_) => {
+            return Err(PhotoError::Unsupported { path: exr_path, message: "cached image is not an EXR".into() });
+        }
+    };
+    if (img.width, img.height) != (entry.width, entry.height) {
+        return Err(PhotoError::WrongSize {
+            path: exr_path,
+            expected: (entry.width, entry.height),
+            found: (img.width, img.height),
+        });
+    }
+    Ok((entry.camera, img))
+}

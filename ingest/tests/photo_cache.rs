@@ -1,0 +1,95 @@
+//! The prepared-view cache: exact round trip of camera, radiance and mask; errors that name the file.
+
+use glam::{DMat4, DQuat, DVec3};
+use ingest::camera::{Camera, Distortion, Intrinsics};
+use ingest::photo::cache::{cached_paths, read_manifest};
+use ingest::photo::{LinearImage, read_cached, write_cached};
+
+fn camera(width: u32, height: u32) -> Camera {
+    Camera {
+        width,
+        height,
+        intrinsics: Intrinsics { fx: 123.456_789, fy: 120.5, cx: 11.25, cy: 7.75 },
+        distortion: Distortion::default(),
+        cam_to_world: DMat4::from_rotation_translation(
+            DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7),
+            DVec3::new(1.5, -2.0, 0.25),
+        ),
+    }
+}
+
+fn image(w: u32, h: u32) -> LinearImage {
+    // Values spanning the f32 range that matters (tiny, fractional, huge) so that any lossy step shows.
+    let rgb = (0..3 * w * h).map(|i| (i as f32 * 0.37).sin().abs() * 10f32.powi((i % 9) as i32 - 4)).collect();
+    let mask = (0..w * h).map(|i| u8::from(i % 5 != 0)).collect();
+    LinearImage::new(w, h, rgb, mask).unwrap()
+}
+
+#[test]
+fn cache_round_trip_is_exact() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run/views");
+    let (cam, img) = (camera(23, 17), image(23, 17));
+    let exr = write_cached(&run, "view_0007", &cam, &img).unwrap();
+    assert_eq!(exr, run.join("view_0007.exr"));
+    let (cam2, img2) = read_cached(&run, "view_0007").unwrap();
+    assert_eq!(cam2, cam);
+    assert_eq!(img2, img);
+    let entry = read_manifest(&run, "view_0007").unwrap();
+    assert_eq!(entry.valid_pixels, img.valid_count());
+    assert_eq!(entry.image, "view_0007.exr");
+    // Atomic writes leave no temporary files behind.
+    let names: Vec<String> =
+        std::fs::read_dir(&run).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(names.len(), 2, "{names:?}");
+}
+
+#[test]
+fn rewriting_an_entry_replaces_it() {
+    let dir = tempfile::tempdir().unwrap();
+    write_cached(dir.path(), "v", &camera(4, 3), &image(4, 3)).unwrap();
+    let small = image(2, 2);
+    write_cached(dir.path(), "v", &camera(2, 2), &small).unwrap();
+    assert_eq!(read_cached(dir.path(), "v").unwrap().1, small);
+}
+
+#[test]
+fn missing_entry_names_the_manifest_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let err = read_cached(dir.path(), "absent").unwrap_err().to_string();
+    assert!(err.contains("absent.json"), "{err}");
+}
+
+#[test]
+fn missing_image_names_the_image_file() {
+    let dir = tempfile::tempdir().unwrap();
+    write_cached(dir.path(), "v", &camera(4, 3), &image(4, 3)).unwrap();
+    std::fs::remove_file(dir.path().join("v.exr")).unwrap();
+    let err = read_cached(dir.path(), "v").unwrap_err().to_string();
+    assert!(err.contains("v.exr"), "{err}");
+}
+
+#[test]
+fn image_disagreeing_with_manifest_size_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    write_cached(dir.path(), "v", &camera(4, 3), &image(4, 3)).unwrap();
+    write_cached(dir.path(), "w", &camera(5, 3), &image(5, 3)).unwrap();
+    std::fs::rename(dir.path().join("w.exr"), dir.path().join("v.exr")).unwrap();
+    let err = read_cached(dir.path(), "v").unwrap_err().to_string();
+    assert!(err.contains("v.exr") && err.contains("5x3") && err.contains("4x3"), "{err}");
+}
+
+#[test]
+fn corrupt_manifest_and_bad_names_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, json) = cached_paths(dir.path(), "v");
+    std::fs::write(&json, b"{\"format\": \"something-else\"").unwrap();
+    let err = read_cached(dir.path(), "v").unwrap_err().to_string();
+    assert!(err.contains("v.json"), "{err}");
+    for bad in ["", "../x", "a/b", ".hidden"] {
+        assert!(write_cached(dir.path(), bad, &camera(2, 2), &image(2, 2)).is_err(), "{bad:?}");
+    }
+    // Camera and image sizes must agree.
+    let err = write_cached(dir.path(), "v", &camera(3, 3), &image(2, 2)).unwrap_err().to_string();
+    assert!(err.contains("v.exr"), "{err}");
+}
