@@ -9,9 +9,8 @@ const FILES: [&str; 3] = ["libembree4.so", "libembree4-4aef3270.so.4", "libtbb-d
 fn main() {
     println!("cargo:rerun-if-env-changed=IPT_EMBREE_LIB");
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
-    let src = std::env::var_os("IPT_EMBREE_LIB")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| manifest.join("../deps/embree/lib"));
+    let src =
+        std::env::var_os("IPT_EMBREE_LIB").map(PathBuf::from).unwrap_or_else(|| manifest.join("../deps/embree/lib"));
     for f in FILES {
         let p = src.join(f);
         println!("cargo:rerun-if-changed={}", p.display());

@@ -192,7 +192,11 @@ impl TriangleScene {
     pub fn intersect(&self, org: Vec3, dir: Vec3, tnear: f32, tfar: f32) -> Option<RayHit> {
         let mut rh = ffi::RTCRayHit {
             ray: ray(org, dir, tnear, tfar),
-            hit: ffi::RTCHit { geom_id: ffi::RTC_INVALID_GEOMETRY_ID, inst_id: [ffi::RTC_INVALID_GEOMETRY_ID], ..Default::default() },
+            hit: ffi::RTCHit {
+                geom_id: ffi::RTC_INVALID_GEOMETRY_ID,
+                inst_id: [ffi::RTC_INVALID_GEOMETRY_ID],
+                ..Default::default()
+            },
         };
         // SAFETY: the scene is committed; `rh` is a properly sized, 16-byte aligned RTCRayHit; null args = defaults.
         unsafe { ffi::rtcIntersect1(self.scene, &mut rh, std::ptr::null_mut()) };

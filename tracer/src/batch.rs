@@ -1,0 +1,216 @@
+//! Entry points: pixel-batch rendering and gradients, parallel over pixels with rayon and deterministic
+//! (each pixel's result depends only on its own counter-based random numbers, and per-pixel results are
+//! reduced in pixel order on one thread).
+//!
+//! [`Renderer`] holds what one optimiser iteration shares between its value and gradient estimates (the
+//! validated parameters and the light-selection distribution built from them); the free functions are
+//! one-call conveniences that build it each time.
+
+use crate::camera::Camera;
+use crate::error::TracerError;
+use crate::integrator::{self, Context, DIM_JITTER, GradEntry, Mode};
+use crate::lights::LightSampler;
+use crate::params::{Grads, Params, TracerSettings};
+use crate::rng::{PathSampler, PixelKey, Stream};
+use crate::scene::Scene;
+use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
+
+/// One pixel of one view (`view` indexes the `cameras` slice).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct PixelRef {
+    pub view: u32,
+    pub x: u32,
+    pub y: u32,
+}
+
+/// Work counters of one call (for benchmarks).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TraceStats {
+    pub paths: u64,
+    /// Embree queries: closest-hit plus shadow rays.
+    pub rays: u64,
+    /// The shadow (occlusion) rays among them.
+    pub shadow_rays: u64,
+}
+
+/// Largest accepted `max_depth`: bounds the random-number dimension (8 per vertex) well inside u32 and the
+/// recorded path length; far beyond any depth with measurable energy.
+const MAX_DEPTH_LIMIT: u32 = 1024;
+
+/// A scene with one parameter set, ready to render and differentiate.
+#[derive(Debug)]
+pub struct Renderer<'a> {
+    scene: &'a Scene,
+    params: &'a Params,
+    settings: TracerSettings,
+    lights: LightSampler,
+}
+
+impl<'a> Renderer<'a> {
+    /// Validates `params` against the scene and `settings`, and builds the light distribution.
+    pub fn new(scene: &'a Scene, params: &'a Params, settings: &TracerSettings) -> Result<Self, TracerError> {
+        params.check(scene)?;
+        if settings.max_depth > MAX_DEPTH_LIMIT {
+            return Err(TracerError::BadSetting {
+                what: "max_depth",
+                requirement: "≤ 1024",
+                value: settings.max_depth.to_string(),
+            });
+        }
+        Ok(Renderer { scene, params, settings: *settings, lights: LightSampler::new(scene, params) })
+    }
+
+    fn context(&self) -> Context<'_> {
+        Context { scene: self.scene, params: self.params, lights: &self.lights, settings: &self.settings }
+    }
+
+    /// Mean radiance of each pixel over `spp` paths (box pixel filter), from the value stream of
+    /// (`seed`, `iteration`), and the work done.
+    pub fn render_pixels(
+        &self,
+        cameras: &[Camera],
+        pixels: &[PixelRef],
+        spp: u32,
+        seed: u64,
+        iteration: u64,
+    ) -> Result<(Vec<Vec3>, TraceStats), TracerError> {
+        check_pixels(cameras, pixels, spp)?;
+        let ctx = self.context();
+        let per_pixel: Vec<(Vec3, [u64; 2])> = pixels
+            .par_iter()
+            .map_init(Vec::new, |record, &p| {
+                let mut sum = DVec3::ZERO;
+                let mut rays = [0; 2];
+                for s in 0..spp {
+                    let rng = PathSampler::new(seed, Stream::Value, iteration, key(p), s);
+                    let (o, d) = primary(cameras, p, &rng);
+                    sum += integrator::trace(&ctx, o, d, &rng, Mode::Value, record, &mut rays).as_dvec3();
+                }
+                ((sum / f64::from(spp)).as_vec3(), rays)
+            })
+            .collect();
+        let stats = TraceStats {
+            paths: pixels.len() as u64 * u64::from(spp),
+            rays: per_pixel.iter().map(|p| p.1[0] + p.1[1]).sum(),
+            shadow_rays: per_pixel.iter().map(|p| p.1[1]).sum(),
+        };
+        Ok((per_pixel.into_iter().map(|p| p.0).collect(), stats))
+    }
+
+    /// `∂(Σ_j weights[j] · I_j)/∂θ` estimated with `spp_grad` paths per pixel from the gradient stream of
+    /// (`seed`, `iteration`), independent of the value stream, and the work done. For the L1 loss of
+    /// Eq. 3–4, `weights[j] = sign(I_j − I_target,j) / B` per channel, formed by the caller from
+    /// `render_pixels`. Pixels with zero weight trace nothing.
+    pub fn gradient_pixels(
+        &self,
+        cameras: &[Camera],
+        pixels: &[PixelRef],
+        weights: &[Vec3],
+        spp_grad: u32,
+        seed: u64,
+        iteration: u64,
+    ) -> Result<(Grads, TraceStats), TracerError> {
+        check_pixels(cameras, pixels, spp_grad)?;
+        if weights.len() != pixels.len() {
+            return Err(TracerError::LengthMismatch { what: "weights", expected: pixels.len(), got: weights.len() });
+        }
+        let ctx = self.context();
+        let per_pixel: Vec<(Vec<GradEntry>, [u64; 2], u64)> = pixels
+            .par_iter()
+            .zip(weights.par_iter())
+            .map_init(Vec::new, |record, (&p, &w)| {
+                let mut entries = Vec::new();
+                let mut rays = [0; 2];
+                // A zero weight means the pixel does not enter the objective: its gradient is exactly zero.
+                if w == Vec3::ZERO {
+                    return (entries, rays, 0);
+                }
+                let w = w / spp_grad as f32;
+                for s in 0..spp_grad {
+                    let rng = PathSampler::new(seed, Stream::Gradient, iteration, key(p), s);
+                    let (o, d) = primary(cameras, p, &rng);
+                    integrator::trace(&ctx, o, d, &rng, Mode::Gradient, record, &mut rays);
+                    integrator::backward(record, w, &mut entries);
+                }
+                (entries, rays, u64::from(spp_grad))
+            })
+            .collect();
+        let mut grads = Grads::zeros_like(self.params);
+        let mut stats = TraceStats::default();
+        for (e, rays, paths) in &per_pixel {
+            integrator::accumulate(&mut grads, e);
+            stats.rays += rays[0] + rays[1];
+            stats.shadow_rays += rays[1];
+            stats.paths += paths;
+        }
+        Ok((grads, stats))
+    }
+}
+
+fn check_pixels(cameras: &[Camera], pixels: &[PixelRef], spp: u32) -> Result<(), TracerError> {
+    if spp == 0 {
+        return Err(TracerError::BadSetting { what: "samples per pixel", requirement: "≥ 1", value: "0".into() });
+    }
+    for (index, p) in pixels.iter().enumerate() {
+        let ok = cameras.get(p.view as usize).is_some_and(|c| p.x < c.width && p.y < c.height);
+        if !ok {
+            return Err(TracerError::BadPixel { index, view: p.view, x: p.x, y: p.y });
+        }
+    }
+    Ok(())
+}
+
+fn primary(cameras: &[Camera], p: PixelRef, rng: &PathSampler) -> (Vec3, Vec3) {
+    let cam = &cameras[p.view as usize];
+    let uv = Camera::jitter(p.x, p.y, Vec2::new(rng.get(DIM_JITTER), rng.get(DIM_JITTER + 1)));
+    cam.ray(uv)
+}
+
+fn key(p: PixelRef) -> PixelKey {
+    PixelKey { view: p.view, x: p.x, y: p.y }
+}
+
+/// [`Renderer::render_pixels`] without the statistics, building the renderer for this one call.
+pub fn render_pixels(
+    scene: &Scene,
+    params: &Params,
+    cameras: &[Camera],
+    pixels: &[PixelRef],
+    spp: u32,
+    settings: &TracerSettings,
+    seed: u64,
+    iteration: u64,
+) -> Result<Vec<Vec3>, TracerError> {
+    Ok(Renderer::new(scene, params, settings)?.render_pixels(cameras, pixels, spp, seed, iteration)?.0)
+}
+
+/// [`Renderer::gradient_pixels`] without the statistics, building the renderer for this one call.
+pub fn gradient_pixels(
+    scene: &Scene,
+    params: &Params,
+    cameras: &[Camera],
+    pixels: &[PixelRef],
+    weights: &[Vec3],
+    spp_grad: u32,
+    settings: &TracerSettings,
+    seed: u64,
+    iteration: u64,
+) -> Result<Grads, TracerError> {
+    Ok(Renderer::new(scene, params, settings)?.gradient_pixels(cameras, pixels, weights, spp_grad, seed, iteration)?.0)
+}
+
+/// Renders every pixel of one camera (row-major, `width × height`), as view 0.
+pub fn render_image(
+    scene: &Scene,
+    params: &Params,
+    camera: &Camera,
+    spp: u32,
+    settings: &TracerSettings,
+    seed: u64,
+    iteration: u64,
+) -> Result<Vec<Vec3>, TracerError> {
+    let pixels: Vec<PixelRef> =
+        (0..camera.height).flat_map(|y| (0..camera.width).map(move |x| PixelRef { view: 0, x, y })).collect();
+    render_pixels(scene, params, std::slice::from_ref(camera), &pixels, spp, settings, seed, iteration)
+}

@@ -1,0 +1,94 @@
+//! Light selection for next-event estimation: a triangle is chosen with probability ∝ (mean RGB emission
+//! scale) × area, i.e. ∝ its emitted power under either profile (the profile integral over the hemisphere,
+//! π or 2π/3, is the same constant for all triangles). Built per parameter set, so an object becomes a light
+//! as soon as the optimiser gives it emission; triangles emitting nothing are never selected (their
+//! contribution is still found by BSDF sampling, with MIS weight 1).
+
+use crate::params::Params;
+use crate::scene::Scene;
+use glam::{Vec2, Vec3};
+
+/// Two-level distribution: an emitter slot with probability ∝ mean emission × slot area, then a triangle of
+/// the slot ∝ its area (precomputed in the [`Scene`]), so a triangle's probability is ∝ its emitted power and
+/// building the sampler costs O(emitter slots), not O(triangles).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LightSampler {
+    /// Emitting slots, in index order.
+    slots: Vec<u32>,
+    /// Inclusive prefix sums of their weights, normalised so the last is 1.
+    cdf: Vec<f64>,
+    /// Selection probability of every slot divided by its area (0 for non-emitting slots): the probability
+    /// of a triangle is this times its area.
+    prob_per_area: Vec<f64>,
+}
+
+/// A point sampled on an emitter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightSample {
+    pub tri: u32,
+    pub p: Vec3,
+    /// Probability density per unit area (selection probability / triangle area).
+    pub pdf_area: f32,
+}
+
+impl LightSampler {
+    /// `params` must cover the scene (see `Params::check`).
+    #[must_use]
+    pub fn new(scene: &Scene, params: &Params) -> Self {
+        let n = scene.emitter_slots();
+        let mut slots = Vec::new();
+        let mut weights = Vec::new();
+        for e in 0..n as u32 {
+            let em = params.emission[e as usize];
+            // Negative or NaN emission (possible transiently inside an optimiser step) is not sampled.
+            let w = f64::from(em.element_sum() / 3.0) * scene.emitter_area(e);
+            if w > 0.0 && w.is_finite() {
+                slots.push(e);
+                weights.push(w);
+            }
+        }
+        let total: f64 = weights.iter().sum();
+        let mut prob_per_area = vec![0.0f64; n];
+        let mut cdf = Vec::with_capacity(weights.len());
+        let mut acc = 0.0;
+        for (&e, &w) in slots.iter().zip(&weights) {
+            acc += w;
+            cdf.push(acc / total);
+            prob_per_area[e as usize] = w / total / scene.emitter_area(e);
+        }
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
+        LightSampler { slots, cdf, prob_per_area }
+    }
+
+    /// True when nothing emits: next-event estimation is skipped.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.slots.is_empty()
+    }
+
+    /// Density per unit area with which `sample` picks points on triangle `tri`.
+    #[inline]
+    #[must_use]
+    pub fn pdf_area(&self, scene: &Scene, tri: u32) -> f32 {
+        self.prob_per_area[scene.emitter_of(tri) as usize] as f32
+    }
+
+    /// Picks an emitting slot with `u_slot`, one of its triangles with `u_tri` and a uniform point on the
+    /// triangle with `u_point` (separate numbers: rescaling one would leave too few bits for large slots).
+    #[must_use]
+    pub fn sample(&self, scene: &Scene, u_slot: f32, u_tri: f32, u_point: Vec2) -> Option<LightSample> {
+        if self.slots.is_empty() {
+            return None;
+        }
+        let u = f64::from(u_slot);
+        let i = self.cdf.partition_point(|&c| c <= u).min(self.slots.len() - 1);
+        let slot = self.slots[i];
+        let tri = scene.sample_emitter_triangle(slot, f64::from(u_tri))?;
+        // Uniform barycentrics by the square-root warp (pbrt-v4 SampleUniformTriangle's classic variant).
+        let r = u_point.x.sqrt();
+        let (b1, b2) = (1.0 - r, u_point.y * r);
+        Some(LightSample { tri, p: scene.position(tri, b1, b2), pdf_area: self.prob_per_area[slot as usize] as f32 })
+    }
+}

@@ -1,0 +1,270 @@
+//! The geometry the tracer renders: one Embree triangle geometry plus per-triangle data (area, geometric
+//! normal, optional vertex normals, and the indices into the material and emission tables of [`crate::Params`]).
+//!
+//! Orientation: the geometric normal of triangle (v0, v1, v2) is `(v1 − v0) × (v2 − v0)` normalised
+//! (counter-clockwise front face, as in Mitsuba, pbrt and OBJ). It decides the emitting side (emission is
+//! one-sided: only the front face emits) and is used for ray offsets and visibility. Reflection is two-sided:
+//! the shading frame is flipped to the side the light arrives from / the viewer is on.
+
+use crate::embree::TriangleScene;
+use crate::error::TracerError;
+use crate::numerics::normalize_or;
+use glam::Vec3;
+
+/// What the caller hands in. `material_of_tri[t]` / `emitter_of_tri[t]` index `Params::materials` /
+/// `Params::emission` (per-object tables: many triangles share an index; per-triangle tables: identity).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SceneInput {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex shading normals (need not be unit length); `None` = flat shading.
+    pub normals: Option<Vec<Vec3>>,
+    pub material_of_tri: Vec<u32>,
+    pub emitter_of_tri: Vec<u32>,
+}
+
+/// A surface point found by a ray.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePoint {
+    pub p: Vec3,
+    /// Unit geometric normal, front-face orientation (not flipped towards the ray).
+    pub ng: Vec3,
+    /// Unit shading normal on the same side as `ng`.
+    pub ns: Vec3,
+    pub tri: u32,
+}
+
+/// Everything a hit needs about its triangle, in one 64-byte cache line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(64))]
+struct TriData {
+    corners: [Vec3; 3],
+    /// Unit geometric normal.
+    ng: Vec3,
+    area: f32,
+    material: u32,
+    emitter: u32,
+}
+
+/// An immutable, committed scene; safe to share between threads.
+#[derive(Debug)]
+pub struct Scene {
+    embree: TriangleScene,
+    triangles: Vec<[u32; 3]>,
+    tri_data: Vec<TriData>,
+    normals: Option<Vec<Vec3>>,
+    emitter_of_tri: Vec<u32>,
+    material_slots: usize,
+    emitter_slots: usize,
+    /// Triangles of each emitter slot: `slot_tris[slot_start[e]..slot_start[e + 1]]`, in index order.
+    slot_start: Vec<usize>,
+    slot_tris: Vec<u32>,
+    /// Inclusive prefix sums of those triangles' areas, normalised per slot (last = 1).
+    slot_area_cdf: Vec<f64>,
+    /// Total area of each emitter slot.
+    slot_area: Vec<f64>,
+}
+
+impl Scene {
+    /// Validates the input and builds the Embree scene.
+    pub fn new(input: SceneInput) -> Result<Scene, TracerError> {
+        let SceneInput { positions, triangles, normals, material_of_tri, emitter_of_tri } = input;
+        let n = triangles.len();
+        for (what, got) in [("material_of_tri", material_of_tri.len()), ("emitter_of_tri", emitter_of_tri.len())] {
+            if got != n {
+                return Err(TracerError::LengthMismatch { what, expected: n, got });
+            }
+        }
+        if let Some(ns) = &normals {
+            if ns.len() != positions.len() {
+                return Err(TracerError::LengthMismatch { what: "normals", expected: positions.len(), got: ns.len() });
+            }
+            if let Some((vertex, &value)) = ns.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+                return Err(TracerError::NonFinite { what: "normal", vertex, value });
+            }
+        }
+        if let Some((vertex, &value)) = positions.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(TracerError::NonFinite { what: "position", vertex, value });
+        }
+        let embree = TriangleScene::new(&positions, &triangles)?;
+        let mut tri_data = Vec::with_capacity(n);
+        for (i, t) in triangles.iter().enumerate() {
+            let corners = t.map(|i| positions[i as usize]);
+            let [a, b, c] = corners;
+            let cr = (b - a).cross(c - a);
+            tri_data.push(TriData {
+                corners,
+                area: 0.5 * cr.length(),
+                // Degenerate triangles have no normal; Embree never reports hits on them and their zero area
+                // gives them zero light-selection probability, so any unit vector will do.
+                ng: normalize_or(cr, Vec3::Z),
+                material: material_of_tri[i],
+                emitter: emitter_of_tri[i],
+            });
+        }
+        let material_slots = material_of_tri.iter().max().map_or(0, |&m| m as usize + 1);
+        let emitter_slots = emitter_of_tri.iter().max().map_or(0, |&m| m as usize + 1);
+        // Counting sort of triangles by emitter slot (stable: index order within a slot).
+        let mut slot_start = vec![0usize; emitter_slots + 1];
+        for &e in &emitter_of_tri {
+            slot_start[e as usize + 1] += 1;
+        }
+        for i in 0..emitter_slots {
+            slot_start[i + 1] += slot_start[i];
+        }
+        let mut fill = slot_start.clone();
+        let mut slot_tris = vec![0u32; n];
+        for (t, &e) in emitter_of_tri.iter().enumerate() {
+            slot_tris[fill[e as usize]] = t as u32;
+            fill[e as usize] += 1;
+        }
+        let mut slot_area_cdf = vec![0.0f64; n];
+        let mut slot_area = vec![0.0f64; emitter_slots];
+        for e in 0..emitter_slots {
+            let range = slot_start[e]..slot_start[e + 1];
+            let mut acc = 0.0;
+            for k in range.clone() {
+                acc += f64::from(tri_data[slot_tris[k] as usize].area);
+                slot_area_cdf[k] = acc;
+            }
+            slot_area[e] = acc;
+            if acc > 0.0 {
+                for k in range {
+                    slot_area_cdf[k] /= acc;
+                }
+            }
+        }
+        Ok(Scene {
+            embree,
+            triangles,
+            tri_data,
+            normals,
+            emitter_of_tri,
+            material_slots,
+            emitter_slots,
+            slot_start,
+            slot_tris,
+            slot_area_cdf,
+            slot_area,
+        })
+    }
+
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Minimum length of `Params::materials` (largest index used + 1).
+    #[must_use]
+    pub fn material_slots(&self) -> usize {
+        self.material_slots
+    }
+
+    /// Minimum length of `Params::emission`.
+    #[must_use]
+    pub fn emitter_slots(&self) -> usize {
+        self.emitter_slots
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn area(&self, tri: u32) -> f32 {
+        self.tri_data[tri as usize].area
+    }
+
+    /// Unit geometric normal `(v1 − v0) × (v2 − v0)` normalised (front face).
+    #[inline]
+    #[must_use]
+    pub fn geometric_normal(&self, tri: u32) -> Vec3 {
+        self.tri_data[tri as usize].ng
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn material_of(&self, tri: u32) -> u32 {
+        self.tri_data[tri as usize].material
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn emitter_of(&self, tri: u32) -> u32 {
+        self.tri_data[tri as usize].emitter
+    }
+
+    /// Total surface area of emitter slot `slot`.
+    #[inline]
+    #[must_use]
+    pub fn emitter_area(&self, slot: u32) -> f64 {
+        self.slot_area[slot as usize]
+    }
+
+    /// A triangle of emitter slot `slot` chosen with probability ∝ its area by `u` in [0, 1), or None when the
+    /// slot has no area.
+    #[must_use]
+    pub fn sample_emitter_triangle(&self, slot: u32, u: f64) -> Option<u32> {
+        let range = self.slot_start[slot as usize]..self.slot_start[slot as usize + 1];
+        let area = self.slot_area[slot as usize];
+        if range.is_empty() || area.is_nan() || area <= 0.0 {
+            return None;
+        }
+        if range.len() == 1 {
+            return Some(self.slot_tris[range.start]);
+        }
+        let cdf = &self.slot_area_cdf[range.clone()];
+        // Zero-area triangles have an empty cdf interval and so are never chosen by the strict comparison.
+        let k = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
+        Some(self.slot_tris[range.start + k])
+    }
+
+    #[must_use]
+    pub fn emitter_of_tri(&self) -> &[u32] {
+        &self.emitter_of_tri
+    }
+
+    #[must_use]
+    pub fn embree(&self) -> &TriangleScene {
+        &self.embree
+    }
+
+    /// Closest surface along `org + t·dir`, t in [0, tfar].
+    #[must_use]
+    pub fn intersect(&self, org: Vec3, dir: Vec3, tfar: f32) -> Option<(SurfacePoint, f32)> {
+        let h = self.embree.intersect(org, dir, 0.0, tfar)?;
+        Some((self.surface(h.prim_id, h.u, h.v), h.t))
+    }
+
+    /// True when something blocks the segment `org + t·dir`, t in [0, tfar].
+    #[must_use]
+    pub fn occluded(&self, org: Vec3, dir: Vec3, tfar: f32) -> bool {
+        self.embree.occluded(org, dir, 0.0, tfar)
+    }
+
+    /// The position with barycentrics (u, v) of vertices 1 and 2 on triangle `tri` (no normals).
+    #[inline]
+    #[must_use]
+    pub fn position(&self, tri: u32, u: f32, v: f32) -> Vec3 {
+        let [a, b, c] = self.tri_data[tri as usize].corners;
+        a * (1.0 - u - v) + b * u + c * v
+    }
+
+    /// The surface point with barycentrics (u, v) of vertices 1 and 2 on triangle `tri`. The position is
+    /// interpolated from the vertices (more accurate than `org + t·dir`, see `offset_ray_origin`).
+    #[must_use]
+    pub fn surface(&self, tri: u32, u: f32, v: f32) -> SurfacePoint {
+        let d = &self.tri_data[tri as usize];
+        let [a, b, c] = d.corners;
+        let w = 1.0 - u - v;
+        let p = a * w + b * u + c * v;
+        let ng = d.ng;
+        let ns = match &self.normals {
+            Some(n) => {
+                let [na, nb, nc] = self.triangles[tri as usize].map(|i| n[i as usize]);
+                let s = normalize_or(na * w + nb * u + nc * v, ng);
+                // Vertex normals that disagree with the winding are taken to mean the other side.
+                if s.dot(ng) < 0.0 { -s } else { s }
+            }
+            None => ng,
+        };
+        SurfacePoint { p, ng, ns, tri }
+    }
+}
