@@ -1,1 +1,54 @@
-fn main() {}
+//! `pipeline`: thin glue over the library (see `pipeline::cli` for the commands).
+//! Exit codes: 0 success, 1 failure while running, 2 bad usage or bad config (one line naming the key).
+
+use std::process::ExitCode;
+
+use clap::Parser;
+use pipeline::cli::{Cli, Command};
+use pipeline::config::ConfigError;
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // clap prints help/version to stdout (exit 0) and usage errors to stderr (exit 2).
+            let _ = e.print();
+            return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
+        }
+    };
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()))
+        .with_writer(std::io::stderr)
+        .init();
+    match execute(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            let code = if e.chain().any(|c| c.downcast_ref::<ConfigError>().is_some()) { 2 } else { 1 };
+            // Our error types print their causes in their own message, so the top level is the whole story.
+            eprintln!("error: {}", one_line(&e.to_string()));
+            ExitCode::from(code)
+        }
+    }
+}
+
+fn execute(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Run(args) => {
+            let plan = pipeline::plan::Plan::load(&args.config, &args.set)?;
+            let opts = pipeline::runner::RunOptions { from: args.from, until: args.until };
+            pipeline::runner::run(&plan, opts, &mut pipeline::stages::Stages)?;
+            let materials = plan.output.join("materials.json");
+            let report = plan.output.join("export").join("report.html");
+            if materials.is_file() && report.is_file() {
+                eprintln!("results: {} and {}", materials.display(), report.display());
+            }
+            Ok(())
+        }
+        Command::Render(args) => pipeline::render_cmd::render(&args).map_err(Into::into),
+        Command::Synth(args) => pipeline::synth::generate(&args.desc, &args.out_dir).map_err(Into::into),
+    }
+}
+
+fn one_line(s: &str) -> String {
+    s.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" ")
+}

@@ -100,6 +100,7 @@ pub(crate) enum Mode {
 
 /// Traces one path from `org` along unit `dir`, returns its radiance estimate; in gradient mode the vertices
 /// are appended to `record` (cleared first). `rays` counts the Embree queries made: [closest hit, shadow].
+#[inline]
 pub(crate) fn trace(
     ctx: &Context<'_>,
     org: Vec3,
@@ -110,9 +111,24 @@ pub(crate) fn trace(
     rays: &mut [u64; 2],
 ) -> Vec3 {
     record.clear();
+    // One monomorphised loop per mode: value paths carry no derivative records at all.
+    match mode {
+        Mode::Value => trace_mode::<false>(ctx, org, dir, rng, record, rays),
+        Mode::Gradient => trace_mode::<true>(ctx, org, dir, rng, record, rays),
+    }
+}
+
+/// The path loop of [`trace`]; `GRAD` = gradient mode.
+fn trace_mode<const GRAD: bool>(
+    ctx: &Context<'_>,
+    org: Vec3,
+    dir: Vec3,
+    rng: &PathSampler,
+    record: &mut Vec<Vertex>,
+    rays: &mut [u64; 2],
+) -> Vec3 {
     let Context { scene, params, lights, settings } = *ctx;
     let profile = settings.emission_profile;
-    let grad = mode == Mode::Gradient;
     let mut l = Vec3::ZERO;
     let mut beta = Vec3::ONE;
     let mut o = org;
@@ -121,11 +137,20 @@ pub(crate) fn trace(
     let mut prev_bsdf_pdf: Option<f32> = None;
     for depth in 0..=settings.max_depth {
         rays[0] += 1;
-        let Some((sp, t)) = scene.intersect(o, d, f32::INFINITY) else { break };
+        let Some(hit) = scene.embree().intersect(o, d, 0.0, f32::INFINITY) else { break };
         let dim = DIM_FIRST_VERTEX + depth * DIMS_PER_VERTEX;
+        let last = depth == settings.max_depth;
+        // The light sample does not depend on the hit point: drawing it before the hit's triangle record is
+        // read gives the processor independent work while that (usually cache-missing) load is in flight.
+        let light = if last || lights.is_empty() {
+            None
+        } else {
+            let u_point = Vec2::new(rng.get(dim + 2), rng.get(dim + 3));
+            lights.sample(scene, rng.get(dim), rng.get(dim + 1), u_point)
+        };
+        let (sp, material_idx, emitter) = scene.surface_and_slots(hit.prim_id, hit.u, hit.v);
+        let t = hit.t;
         let wo = -d;
-        let material_idx = scene.material_of(sp.tri);
-        let emitter = scene.emitter_of(sp.tri);
         let mut v =
             Vertex { beta, material: material_idx, emitter, le: Vec3::ZERO, le_factor: 0.0, nee: None, scatter: None };
 
@@ -136,7 +161,7 @@ pub(crate) fn trace(
             let mis = match prev_bsdf_pdf {
                 None => 1.0,
                 Some(pdf_b) => {
-                    let pdf_area = lights.pdf_area(scene, sp.tri);
+                    let pdf_area = lights.pdf_area_of_slot(emitter);
                     if pdf_area > 0.0 {
                         let pdf_l = pdf_area * t * t / cos_o;
                         power_heuristic(pdf_b, pdf_l)
@@ -149,8 +174,8 @@ pub(crate) fn trace(
             v.le = params.emission[emitter as usize] * v.le_factor;
             l += beta * v.le;
         }
-        if depth == settings.max_depth {
-            record_if(grad, record, v);
+        if last {
+            record_if::<GRAD>(record, v);
             break;
         }
 
@@ -159,10 +184,12 @@ pub(crate) fn trace(
         let frame = Frame::from_normal(ns);
         let wo_l = frame.to_local(wo);
         let material: &Material = &params.materials[material_idx as usize];
+        // The lobe-selection probability depends only on wo: computed once for the NEE pdf and the sampling.
+        // (Below the shading horizon, wo_l.z ≤ 0, neither uses it.)
+        let p_spec = if wo_l.z > 0.0 { material.lobe_probability(wo_l) } else { 0.0 };
 
         // Next-event estimation.
-        let u_point = Vec2::new(rng.get(dim + 2), rng.get(dim + 3));
-        if let Some(ls) = lights.sample(scene, rng.get(dim), rng.get(dim + 1), u_point) {
+        if let Some(ls) = light {
             let to_light = ls.p - sp.p;
             let dist2 = to_light.length_squared();
             let wi = to_light / dist2.sqrt();
@@ -171,19 +198,20 @@ pub(crate) fn trace(
             let le_factor = profile.factor(cos_l);
             if le_factor > 0.0 && wi.dot(ng) > 0.0 && dist2 > 0.0 {
                 let wi_l = frame.to_local(wi);
-                let (f, d_f) = if grad {
-                    material.eval_grad(wo_l, wi_l)
+                let (f, d_f, pdf_b) = if GRAD {
+                    material.eval_grad_pdf_with(wo_l, wi_l, p_spec)
                 } else {
-                    (material.eval(wo_l, wi_l), MaterialGrad::default())
+                    let (f, pdf_b) = material.eval_pdf_with(wo_l, wi_l, p_spec);
+                    (f, MaterialGrad::default(), pdf_b)
                 };
                 // In value mode a zero BSDF value contributes nothing; gradient mode still needs ∂f.
-                if grad || f != Vec3::ZERO {
+                if GRAD || f != Vec3::ZERO {
                     let from = offset_ray_origin(sp.p, ng, wi);
                     let to = offset_ray_origin(ls.p, ng_l, -wi);
                     rays[1] += 1;
                     if !scene.occluded(from, to - from, 1.0 - SHADOW_EPSILON) {
                         let pdf_l = ls.pdf_area * dist2 / cos_l;
-                        let mis = power_heuristic(pdf_l, material.pdf(wo_l, wi_l));
+                        let mis = power_heuristic(pdf_l, pdf_b);
                         let g = wi_l.z.abs() / pdf_l * mis;
                         let light_emitter = scene.emitter_of(ls.tri);
                         let le = params.emission[light_emitter as usize] * le_factor;
@@ -194,32 +222,38 @@ pub(crate) fn trace(
             }
         }
 
-        // BSDF sampling of the continuation.
-        let Some(s) = material.sample(wo_l, Vec2::new(rng.get(dim + 5), rng.get(dim + 6)), rng.get(dim + 4)) else {
-            record_if(grad, record, v);
+        // BSDF sampling of the continuation. Gradient mode evaluates f once, with its derivatives.
+        let u_dir = Vec2::new(rng.get(dim + 5), rng.get(dim + 6));
+        let u_lobe = rng.get(dim + 4);
+        let sampled = if GRAD {
+            material.sample_grad_with(wo_l, u_dir, u_lobe, p_spec).map(|(wi_l, f, d_f, pdf)| (wi_l, pdf, f, d_f))
+        } else {
+            material.sample_with(wo_l, u_dir, u_lobe, p_spec).map(|s| (s.wi, s.pdf, s.f, MaterialGrad::default()))
+        };
+        let Some((wi_l, pdf, f, d_f)) = sampled else {
+            record_if::<GRAD>(record, v);
             break;
         };
-        let wi = frame.to_world(s.wi);
-        if s.pdf.is_nan() || s.pdf <= 0.0 || wi.dot(ng) <= 0.0 {
-            record_if(grad, record, v);
+        let wi = frame.to_world(wi_l);
+        if pdf.is_nan() || pdf <= 0.0 || wi.dot(ng) <= 0.0 {
+            record_if::<GRAD>(record, v);
             break;
         }
-        let (f, d_f) = if grad { material.eval_grad(wo_l, s.wi) } else { (s.f, MaterialGrad::default()) };
-        let mut weight = s.wi.z.abs() / s.pdf;
+        let mut weight = wi_l.z.abs() / pdf;
         let beta_next = beta * f * weight;
         if depth + 1 > settings.rr_depth {
-            let floor = if grad { RR_MIN_SURVIVAL_GRADIENT } else { 0.0 };
+            let floor = if GRAD { RR_MIN_SURVIVAL_GRADIENT } else { 0.0 };
             let q = beta_next.max_element().clamp(floor, RR_MAX_SURVIVAL);
             if rng.get(dim + 7) >= q {
-                record_if(grad, record, v);
+                record_if::<GRAD>(record, v);
                 break;
             }
             weight /= q;
         }
         v.scatter = Some(ScatterRecord { d_f, f, weight });
-        record_if(grad, record, v);
+        record_if::<GRAD>(record, v);
         beta *= f * weight;
-        prev_bsdf_pdf = Some(s.pdf);
+        prev_bsdf_pdf = Some(pdf);
         o = offset_ray_origin(sp.p, ng, wi);
         d = wi;
     }
@@ -227,8 +261,8 @@ pub(crate) fn trace(
 }
 
 #[inline]
-fn record_if(grad: bool, record: &mut Vec<Vertex>, v: Vertex) {
-    if grad {
+fn record_if<const GRAD: bool>(record: &mut Vec<Vertex>, v: Vertex) {
+    if GRAD {
         record.push(v);
     }
 }

@@ -63,6 +63,7 @@ impl LightSampler {
     }
 
     /// True when nothing emits: next-event estimation is skipped.
+    #[inline]
     #[must_use]
     pub fn is_empty(&self) -> bool {
         self.slots.is_empty()
@@ -72,11 +73,19 @@ impl LightSampler {
     #[inline]
     #[must_use]
     pub fn pdf_area(&self, scene: &Scene, tri: u32) -> f32 {
-        self.prob_per_area[scene.emitter_of(tri) as usize] as f32
+        self.pdf_area_of_slot(scene.emitter_of(tri))
+    }
+
+    /// Density per unit area with which `sample` picks points on any triangle of emitter slot `slot`.
+    #[inline]
+    #[must_use]
+    pub fn pdf_area_of_slot(&self, slot: u32) -> f32 {
+        self.prob_per_area[slot as usize] as f32
     }
 
     /// Picks an emitting slot with `u_slot`, one of its triangles with `u_tri` and a uniform point on the
     /// triangle with `u_point` (separate numbers: rescaling one would leave too few bits for large slots).
+    #[inline]
     #[must_use]
     pub fn sample(&self, scene: &Scene, u_slot: f32, u_tri: f32, u_point: Vec2) -> Option<LightSample> {
         if self.slots.is_empty() {

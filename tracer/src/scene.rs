@@ -200,6 +200,7 @@ impl Scene {
 
     /// A triangle of emitter slot `slot` chosen with probability ∝ its area by `u` in [0, 1), or None when the
     /// slot has no area.
+    #[inline]
     #[must_use]
     pub fn sample_emitter_triangle(&self, slot: u32, u: f64) -> Option<u32> {
         let range = self.slot_start[slot as usize]..self.slot_start[slot as usize + 1];
@@ -221,12 +222,14 @@ impl Scene {
         &self.emitter_of_tri
     }
 
+    #[inline]
     #[must_use]
     pub fn embree(&self) -> &TriangleScene {
         &self.embree
     }
 
     /// Closest surface along `org + t·dir`, t in [0, tfar].
+    #[inline]
     #[must_use]
     pub fn intersect(&self, org: Vec3, dir: Vec3, tfar: f32) -> Option<(SurfacePoint, f32)> {
         let h = self.embree.intersect(org, dir, 0.0, tfar)?;
@@ -234,6 +237,7 @@ impl Scene {
     }
 
     /// True when something blocks the segment `org + t·dir`, t in [0, tfar].
+    #[inline]
     #[must_use]
     pub fn occluded(&self, org: Vec3, dir: Vec3, tfar: f32) -> bool {
         self.embree.occluded(org, dir, 0.0, tfar)
@@ -249,8 +253,17 @@ impl Scene {
 
     /// The surface point with barycentrics (u, v) of vertices 1 and 2 on triangle `tri`. The position is
     /// interpolated from the vertices (more accurate than `org + t·dir`, see `offset_ray_origin`).
+    #[inline]
     #[must_use]
     pub fn surface(&self, tri: u32, u: f32, v: f32) -> SurfacePoint {
+        self.surface_and_slots(tri, u, v).0
+    }
+
+    /// [`Scene::surface`] together with the triangle's material and emitter slots, all read from the one
+    /// cache line of the triangle's record (the integrator's per-hit lookup).
+    #[inline]
+    #[must_use]
+    pub fn surface_and_slots(&self, tri: u32, u: f32, v: f32) -> (SurfacePoint, u32, u32) {
         let d = &self.tri_data[tri as usize];
         let [a, b, c] = d.corners;
         let w = 1.0 - u - v;
@@ -265,6 +278,6 @@ impl Scene {
             }
             None => ng,
         };
-        SurfacePoint { p, ng, ns, tri }
+        (SurfacePoint { p, ng, ns, tri }, d.material, d.emitter)
     }
 }

@@ -90,16 +90,25 @@ pub(crate) fn smith_s<T: Real>(a: T, w: [T; 3]) -> T {
     (w[2] * w[2] + a * (w[0] * w[0] + w[1] * w[1])).safe_sqrt()
 }
 
-/// V = G2/(4 cosθo cosθi) = 1/(2 (cosθi S(wo) + cosθo S(wi))) and ∂V/∂a, for wo, wi above the surface.
-/// ∂S/∂a = sin²θ/(2S), so ∂V/∂a = −V² (cosθi sin²θo / S(wo) + cosθo sin²θi / S(wi)).
+/// V = G2/(4 cosθo cosθi) = 1/(2 (cosθi S(wo) + cosθo S(wi))) and ∂V/∂a, for wo, wi above the surface,
+/// and S(wo) (which the sampling pdf shares). ∂S/∂a = sin²θ/(2S), so
+/// ∂V/∂a = −V² (cosθi sin²θo / S(wo) + cosθo sin²θi / S(wi)).
 #[inline]
 #[must_use]
-pub(crate) fn smith_v<T: Real>(a: T, wo: [T; 3], wi: [T; 3]) -> (T, T) {
+pub(crate) fn smith_v<T: Real>(a: T, wo: [T; 3], wi: [T; 3]) -> (T, T, T) {
     let (so, si) = (smith_s(a, wo), smith_s(a, wi));
     let v = T::lit(0.5) / (wi[2] * so + wo[2] * si);
     let so_t2 = wo[0] * wo[0] + wo[1] * wo[1];
     let si_t2 = wi[0] * wi[0] + wi[1] * wi[1];
-    (v, -v * v * (wi[2] * so_t2 / so + wo[2] * si_t2 / si))
+    (v, -v * v * (wi[2] * so_t2 / so + wo[2] * si_t2 / si), so)
+}
+
+/// p_s from the D(h) and S(wo) of the same (α, wo, wi): bit-identical to [`pdf_reflect`], for callers that
+/// already evaluated both.
+#[inline]
+#[must_use]
+pub(crate) fn pdf_reflect_from(d: f32, wo_z: f32, s_o: f32) -> f32 {
+    d / (2.0 * (wo_z + s_o))
 }
 
 /// Solid-angle density of a VNDF-sampled reflection: p_s(wi | wo) = D(h) / (2 (cosθo + S(wo))).
@@ -109,7 +118,7 @@ pub(crate) fn pdf_reflect(alpha: f32, wo: Vec3, wi: Vec3) -> f32 {
     let a = alpha * alpha;
     let (wo, wi) = (wo.to_array(), wi.to_array());
     let (d, _) = ndf(a, &half_angles(wo, wi));
-    d / (2.0 * (wo[2] + smith_s(a, wo)))
+    pdf_reflect_from(d, wo[2], smith_s(a, wo))
 }
 
 /// Draws a microfacet normal from the distribution of normals visible from `wo` (wo.z > 0), Heitz 2018

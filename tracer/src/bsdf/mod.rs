@@ -99,6 +99,7 @@ const LUMINANCE: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
 
 impl Material {
     /// f_r(wo, wi), zero when either direction is below the surface.
+    #[inline]
     #[must_use]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         if !(wo.z > 0.0 && wi.z > 0.0) {
@@ -130,11 +131,27 @@ impl Material {
         if !(wo.z > 0.0 && wi.z > 0.0) {
             return 0.0;
         }
-        let p_diffuse = lambert::pdf_cosine(wi);
-        if self.is_lambert() {
-            return p_diffuse;
+        self.pdf_with(wo, wi, self.lobe_probability(wo))
+    }
+
+    /// P_s for this wo as `sample`/`pdf` use it: 0 for a pure Lambert material (which never evaluates the
+    /// Fresnel terms), else [`Material::specular_probability`]. It depends only on wo, so a caller that
+    /// needs `pdf` and `sample` at one vertex computes it once and passes it to the `_with` variants.
+    #[inline]
+    #[must_use]
+    pub fn lobe_probability(&self, wo: Vec3) -> f32 {
+        if self.is_lambert() { 0.0 } else { self.specular_probability(wo) }
+    }
+
+    /// [`Material::pdf`] given `p_spec = self.lobe_probability(wo)` (bit-identical result).
+    #[inline]
+    #[must_use]
+    pub fn pdf_with(&self, wo: Vec3, wi: Vec3, p_spec: f32) -> f32 {
+        if !(wo.z > 0.0 && wi.z > 0.0) {
+            return 0.0;
         }
-        let p_spec = self.specular_probability(wo);
+        debug_assert_eq!(p_spec.to_bits(), self.lobe_probability(wo).to_bits(), "p_spec must be lobe_probability(wo)");
+        let p_diffuse = lambert::pdf_cosine(wi);
         if p_spec > 0.0 {
             let (alpha, _) = ggx::alpha(self.roughness);
             p_spec * ggx::pdf_reflect(alpha, wo, wi) + (1.0 - p_spec) * p_diffuse
@@ -150,18 +167,117 @@ impl Material {
         if wo.z.is_nan() || wo.z <= 0.0 {
             return None;
         }
-        let wi = if !self.is_lambert() && u_lobe < self.specular_probability(wo) {
+        self.sample_with(wo, u, u_lobe, self.lobe_probability(wo))
+    }
+
+    /// `(eval(wo, wi), pdf_with(wo, wi, p_spec))` bit for bit, sharing the GGX half-vector, D and S(wo)
+    /// between the two (the integrator's next-event and BSDF-sampled evaluations).
+    #[inline]
+    #[must_use]
+    pub fn eval_pdf_with(&self, wo: Vec3, wi: Vec3, p_spec: f32) -> (Vec3, f32) {
+        if !(wo.z > 0.0 && wi.z > 0.0) {
+            return (Vec3::ZERO, 0.0);
+        }
+        debug_assert_eq!(p_spec.to_bits(), self.lobe_probability(wo).to_bits(), "p_spec must be lobe_probability(wo)");
+        let p_diffuse = lambert::pdf_cosine(wi);
+        if self.is_lambert() {
+            // As in `eval` and `pdf_with` (p_spec = 0 for Lambert).
+            return (self.base_color * std::f32::consts::FRAC_1_PI, p_diffuse);
+        }
+        let (f, _, terms) = eval_terms::<f32, false>(&self.params(), wo.to_array(), wi.to_array());
+        let pdf = if p_spec > 0.0 {
+            let p_s = match terms {
+                Some(t) => ggx::pdf_reflect_from(t.d, wo.z, t.s_o),
+                None => ggx::pdf_reflect(ggx::alpha(self.roughness).0, wo, wi),
+            };
+            p_spec * p_s + (1.0 - p_spec) * p_diffuse
+        } else {
+            p_diffuse
+        };
+        (Vec3::from_array(f), pdf)
+    }
+
+    /// `(eval_grad(wo, wi), pdf_with(wo, wi, p_spec))` bit for bit, sharing the GGX terms like
+    /// [`Material::eval_pdf_with`].
+    #[inline]
+    #[must_use]
+    pub fn eval_grad_pdf_with(&self, wo: Vec3, wi: Vec3, p_spec: f32) -> (Vec3, MaterialGrad, f32) {
+        let (f, g, terms) = eval_terms::<f32, true>(&self.params(), wo.to_array(), wi.to_array());
+        let grad = MaterialGrad {
+            d_base_color: Vec3::from_array(g.d_base),
+            d_roughness: Vec3::from_array(g.d_roughness),
+            d_metallic: Vec3::from_array(g.d_metallic),
+            d_specular: Vec3::from_array(g.d_specular),
+        };
+        if !(wo.z > 0.0 && wi.z > 0.0) {
+            return (Vec3::from_array(f), grad, 0.0);
+        }
+        debug_assert_eq!(p_spec.to_bits(), self.lobe_probability(wo).to_bits(), "p_spec must be lobe_probability(wo)");
+        let p_diffuse = lambert::pdf_cosine(wi);
+        let pdf = if p_spec > 0.0 {
+            let p_s = match terms {
+                Some(t) => ggx::pdf_reflect_from(t.d, wo.z, t.s_o),
+                None => ggx::pdf_reflect(ggx::alpha(self.roughness).0, wo, wi),
+            };
+            p_spec * p_s + (1.0 - p_spec) * p_diffuse
+        } else {
+            p_diffuse
+        };
+        (Vec3::from_array(f), grad, pdf)
+    }
+
+    /// [`Material::sample_with`] with f evaluated by `eval_grad`: (wi, f, ∂f, pdf).
+    #[inline]
+    #[must_use]
+    pub fn sample_grad_with(
+        &self,
+        wo: Vec3,
+        u: Vec2,
+        u_lobe: f32,
+        p_spec: f32,
+    ) -> Option<(Vec3, Vec3, MaterialGrad, f32)> {
+        let wi = self.sample_wi(wo, u, u_lobe, p_spec)?;
+        let (f, grad, pdf) = self.eval_grad_pdf_with(wo, wi, p_spec);
+        (pdf > 0.0 && pdf.is_finite()).then_some((wi, f, grad, pdf))
+    }
+
+    /// [`Material::sample`] given `p_spec = self.lobe_probability(wo)` (bit-identical result).
+    #[inline]
+    #[must_use]
+    pub fn sample_with(&self, wo: Vec3, u: Vec2, u_lobe: f32, p_spec: f32) -> Option<BsdfSample> {
+        let wi = self.sample_wi(wo, u, u_lobe, p_spec)?;
+        let (f, pdf) = self.eval_pdf_with(wo, wi, p_spec);
+        (pdf > 0.0 && pdf.is_finite()).then_some(BsdfSample { wi, f, pdf })
+    }
+
+    /// The direction and pdf of [`Material::sample_with`] without evaluating f (for callers that evaluate
+    /// f together with its derivatives through `eval_grad`).
+    #[inline]
+    #[must_use]
+    pub fn sample_direction_with(&self, wo: Vec3, u: Vec2, u_lobe: f32, p_spec: f32) -> Option<(Vec3, f32)> {
+        let wi = self.sample_wi(wo, u, u_lobe, p_spec)?;
+        let pdf = self.pdf_with(wo, wi, p_spec);
+        (pdf > 0.0 && pdf.is_finite()).then_some((wi, pdf))
+    }
+
+    /// The sampled direction of [`Material::sample_with`] (before its pdf is checked).
+    #[inline]
+    fn sample_wi(&self, wo: Vec3, u: Vec2, u_lobe: f32, p_spec: f32) -> Option<Vec3> {
+        if wo.z.is_nan() || wo.z <= 0.0 {
+            return None;
+        }
+        debug_assert_eq!(p_spec.to_bits(), self.lobe_probability(wo).to_bits(), "p_spec must be lobe_probability(wo)");
+        if !self.is_lambert() && u_lobe < p_spec {
             let (alpha, _) = ggx::alpha(self.roughness);
             let h = ggx::sample_vndf(alpha, wo, u)?;
-            (2.0 * wo.dot(h) * h - wo).normalize_or_zero()
+            Some((2.0 * wo.dot(h) * h - wo).normalize_or_zero())
         } else {
-            lambert::sample_cosine(u)
-        };
-        let pdf = self.pdf(wo, wi);
-        (pdf > 0.0 && pdf.is_finite()).then(|| BsdfSample { wi, f: self.eval(wo, wi), pdf })
+            Some(lambert::sample_cosine(u))
+        }
     }
 
     /// True when the material is pure Lambert (metallic = specular = 0): the integrator's fast path.
+    #[inline]
     #[must_use]
     pub fn is_lambert(&self) -> bool {
         self.metallic == 0.0 && self.specular == 0.0
@@ -226,25 +342,47 @@ pub(crate) struct Grad<T> {
 /// ```
 #[must_use]
 pub(crate) fn eval_generic<T: Real, const GRAD: bool>(p: &Params<T>, wo: [T; 3], wi: [T; 3]) -> ([T; 3], Grad<T>) {
+    let (f, g, _) = eval_terms::<T, GRAD>(p, wo, wi);
+    (f, g)
+}
+
+/// The GGX terms of one evaluation that the sampling pdf shares: D(h) and S(wo) (see ggx.rs).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SpecularTerms<T> {
+    pub d: T,
+    pub s_o: T,
+}
+
+/// [`eval_generic`], also returning the D and S(wo) it computed (None where the specular lobe is off:
+/// either direction below the surface or below [`SPECULAR_MIN_COS`]).
+#[inline]
+#[must_use]
+pub(crate) fn eval_terms<T: Real, const GRAD: bool>(
+    p: &Params<T>,
+    wo: [T; 3],
+    wi: [T; 3],
+) -> ([T; 3], Grad<T>, Option<SpecularTerms<T>>) {
     let zero = T::lit(0.0);
     let one = T::lit(1.0);
     let mut f = [zero; 3];
     let mut g = Grad { d_base: [zero; 3], d_roughness: [zero; 3], d_metallic: [zero; 3], d_specular: [zero; 3] };
     let (cos_o, cos_i) = (wo[2], wi[2]);
     if !(cos_o > zero && cos_i > zero) {
-        return (f, g);
+        return (f, g, None);
     }
     let inv_pi = T::lit(std::f64::consts::FRAC_1_PI);
     let (w_o, w_i) = (fresnel::schlick_weight(cos_o), fresnel::schlick_weight(cos_i));
 
     // Specular geometry, shared by the channels: DV = D·V, its a-derivative, the Schlick weight at wo·h.
     let min_cos = T::lit(f64::from(SPECULAR_MIN_COS));
+    let mut terms = None;
     let (dv, d_dv_da, w_h, da_dr) = if cos_o >= min_cos && cos_i >= min_cos {
         let (alpha, dalpha_dr) = ggx::alpha(p.roughness);
         let a = alpha * alpha;
         let h = ggx::half_angles(wo, wi);
         let (d, dd_da) = ggx::ndf(a, &h);
-        let (v, dv_da) = ggx::smith_v(a, wo, wi);
+        let (v, dv_da, s_o) = ggx::smith_v(a, wo, wi);
+        terms = Some(SpecularTerms { d, s_o });
         (d * v, dd_da * v + d * dv_da, fresnel::schlick_weight(h.cos_d), T::lit(2.0) * alpha * dalpha_dr)
     } else {
         (zero, zero, fresnel::schlick_weight(one), zero)
@@ -267,5 +405,5 @@ pub(crate) fn eval_generic<T: Real, const GRAD: bool>(p: &Params<T>, wo: [T; 3],
             g.d_roughness[k] = if da_dr == zero { zero } else { d_dv_da * f_h * da_dr };
         }
     }
-    (f, g)
+    (f, g, terms)
 }

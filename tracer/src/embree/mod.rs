@@ -188,6 +188,7 @@ impl TriangleScene {
     }
 
     /// Closest hit along `org + t·dir` for `t` in `[tnear, tfar]`, or `None`.
+    #[inline]
     #[must_use]
     pub fn intersect(&self, org: Vec3, dir: Vec3, tnear: f32, tfar: f32) -> Option<RayHit> {
         let mut rh = ffi::RTCRayHit {
@@ -210,6 +211,7 @@ impl TriangleScene {
     }
 
     /// True when anything blocks `org + t·dir` for `t` in `[tnear, tfar]`.
+    #[inline]
     #[must_use]
     pub fn occluded(&self, org: Vec3, dir: Vec3, tnear: f32, tfar: f32) -> bool {
         let mut r = ray(org, dir, tnear, tfar);
@@ -219,6 +221,7 @@ impl TriangleScene {
     }
 }
 
+#[inline]
 fn ray(org: Vec3, dir: Vec3, tnear: f32, tfar: f32) -> ffi::RTCRay {
     ffi::RTCRay {
         org_x: org.x,

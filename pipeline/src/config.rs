@@ -1,0 +1,381 @@
+//! The user's TOML configuration as written (`config.toml`), and its parsing with `--set key=value`
+//! overrides. Every table denies unknown keys; every default is documented in `configs/README.md`.
+//!
+//! Parsing goes TOML text → `toml::Table` → overrides applied → typed [`Config`] through
+//! `serde_path_to_error`, so every error names the dotted key it is about (`object.lr`, `scan.path`).
+//! [`crate::plan::Plan::resolve`] then validates values and resolves paths.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use tracer::EmissionProfile;
+
+use crate::fit::ObjectFitSettings;
+
+/// A configuration error. Its `Display` is always a single line that names the offending key where there
+/// is one; the binary prints it and exits with code 2.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The config file could not be read.
+    #[error("{path}: cannot read config: {source}", path = .path.display())]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML (syntax).
+    #[error("{path}: {message}", path = .path.display())]
+    Syntax { path: PathBuf, message: String },
+    /// A key is unknown, has the wrong type, is missing, or has an invalid value.
+    #[error("{path}: `{key}`: {message}", path = .path.display())]
+    Key { path: PathBuf, key: String, message: String },
+    /// A `--set` argument is malformed.
+    #[error("--set {arg}: {message}")]
+    Override { arg: String, message: String },
+}
+
+/// The whole configuration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    pub scan: ScanConfig,
+    #[serde(default)]
+    pub output: OutputConfig,
+    #[serde(default)]
+    pub images: ImagesConfig,
+    #[serde(default)]
+    pub tracer: TracerConfig,
+    #[serde(default)]
+    pub object: ObjectFitSettings,
+    #[serde(default)]
+    pub triangle: TriangleConfig,
+    #[serde(default)]
+    pub export: ExportConfig,
+}
+
+/// Scan formats `ingest` reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ScanFormat {
+    /// Detect from the directory layout.
+    #[default]
+    Auto,
+    /// `house_segmentations/` + `undistorted_camera_parameters/*.conf` + `undistorted_color_images/`.
+    Matterport,
+    /// Matterport's raw distorted captures (`matterport_camera_*`, `matterport_color_images/`).
+    MatterportRaw,
+    Obj,
+    Colmap,
+    Transforms,
+}
+
+/// `[scan]`: where the scan is and how its faces are grouped into objects.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScanConfig {
+    /// Scan directory (required); relative paths are relative to the config file.
+    pub path: PathBuf,
+    #[serde(default)]
+    pub format: ScanFormat,
+    /// Which per-face id column defines objects.
+    #[serde(default)]
+    pub group_by: GroupBy,
+}
+
+/// Which per-face id column defines objects (mirrors `ingest::scan::GroupBy`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GroupBy {
+    /// Matterport `segment_id` (object instances); OBJ `o`/`g` groups.
+    #[default]
+    Segment,
+    /// Matterport `category_id`.
+    Category,
+    /// Matterport `material_id` (over-segments); OBJ `usemtl` materials.
+    Material,
+}
+
+/// `[output]`: where the run directory goes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputConfig {
+    /// Run directory; relative paths are relative to the config file.
+    #[serde(default = "default_output_path")]
+    pub path: PathBuf,
+}
+
+fn default_output_path() -> PathBuf {
+    PathBuf::from("run")
+}
+
+impl Default for OutputConfig {
+    fn default() -> Self {
+        Self { path: default_output_path() }
+    }
+}
+
+/// `[images]`: photo preparation (the `preprocess` stage).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImagesConfig {
+    /// Integer downscale factor applied to every photo (box filter); 1 = full resolution.
+    #[serde(default = "one")]
+    pub downscale: u32,
+    /// Keep only these views (colour file stems, e.g. `abc_i1_2`); empty = all views.
+    #[serde(default)]
+    pub cameras: Vec<String>,
+    /// Keep every n-th view (after `cameras`); 1 = all.
+    #[serde(default = "one")]
+    pub every: u32,
+}
+
+fn one() -> u32 {
+    1
+}
+
+impl Default for ImagesConfig {
+    fn default() -> Self {
+        Self { downscale: 1, cameras: Vec::new(), every: 1 }
+    }
+}
+
+/// `[tracer]`: path tracing settings shared by every stage that renders.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TracerConfig {
+    /// Largest number of scattering events on a path (pbrt's convention: 0 = emitters seen directly only,
+    /// 1 = plus direct illumination; Mitsuba's `max_depth` is this + 1).
+    #[serde(default = "default_max_depth")]
+    pub max_depth: u32,
+    /// Bounce from which Russian roulette may end a path.
+    #[serde(default = "default_rr_depth")]
+    pub rr_depth: u32,
+    /// `uniform` (default; Mitsuba/pbrt area lights) or `cosine` (the paper's `e (i·n)+`).
+    #[serde(default)]
+    pub emission_profile: EmissionProfile,
+}
+
+impl TracerConfig {
+    /// The tracer's settings.
+    #[must_use]
+    pub fn settings(&self) -> tracer::TracerSettings {
+        tracer::TracerSettings {
+            max_depth: self.max_depth,
+            rr_depth: self.rr_depth,
+            emission_profile: self.emission_profile,
+        }
+    }
+}
+
+/// The name of an emission profile as written in `materials.json` and the config.
+#[must_use]
+pub fn profile_name(p: EmissionProfile) -> &'static str {
+    match p {
+        EmissionProfile::Uniform => "uniform",
+        EmissionProfile::Cosine => "cosine",
+    }
+}
+
+fn default_max_depth() -> u32 {
+    8
+}
+
+fn default_rr_depth() -> u32 {
+    3
+}
+
+impl Default for TracerConfig {
+    fn default() -> Self {
+        Self {
+            max_depth: default_max_depth(),
+            rr_depth: default_rr_depth(),
+            emission_profile: EmissionProfile::Uniform,
+        }
+    }
+}
+
+/// `[triangle]`: the per-triangle stage (its own issue); no keys yet.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TriangleConfig {}
+
+/// `[export]`: materials.json, trajectories and report.html.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExportConfig {
+    /// Samples per pixel of the re-renders shown in report.html.
+    #[serde(default = "default_report_spp")]
+    pub report_spp: u32,
+    /// At most this many views appear in report.html (evenly spread over the prepared views).
+    #[serde(default = "default_report_views")]
+    pub report_views: u32,
+    /// Seed of the report re-renders.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+fn default_report_spp() -> u32 {
+    64
+}
+
+fn default_report_views() -> u32 {
+    6
+}
+
+impl Default for ExportConfig {
+    fn default() -> Self {
+        Self { report_spp: default_report_spp(), report_views: default_report_views(), seed: 0 }
+    }
+}
+
+/// Reads `path`, applies `overrides` (`a.b=value`), and deserialises the result.
+pub fn load(path: &Path, overrides: &[String]) -> Result<Config, ConfigError> {
+    let text =
+        std::fs::read_to_string(path).map_err(|source| ConfigError::Read { path: path.to_path_buf(), source })?;
+    parse(&text, path, overrides)
+}
+
+/// Parses config text (`path` only labels errors), applies `overrides`, deserialises.
+pub fn parse(text: &str, path: &Path, overrides: &[String]) -> Result<Config, ConfigError> {
+    let mut table: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| ConfigError::Syntax { path: path.to_path_buf(), message: one_line(&e) })?;
+    for arg in overrides {
+        apply_override(&mut table, arg)?;
+    }
+    let de = toml::Value::Table(table);
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let parent = e.path().to_string();
+        let message = one_line(&e.inner().message());
+        // serde reports a missing field at its parent; name the field itself.
+        let missing = message.strip_prefix("missing field `").and_then(|m| m.split('`').next());
+        let key = match missing {
+            Some(field) if parent == "." => field.to_owned(),
+            Some(field) => format!("{parent}.{field}"),
+            None => parent,
+        };
+        ConfigError::Key { path: path.to_path_buf(), key, message }
+    })
+}
+
+/// Applies one `a.b.c=value` override. The value is parsed as a TOML value (`3`, `1e-3`, `true`,
+/// `"text"`, `[1, 2]`); if that fails it is taken as a plain string (so `scan.path=/data/x` works unquoted).
+pub fn apply_override(table: &mut toml::Table, arg: &str) -> Result<(), ConfigError> {
+    let err = |message: &str| ConfigError::Override { arg: arg.to_owned(), message: message.to_owned() };
+    let (key, raw) = arg.split_once('=').ok_or_else(|| err("expected key=value"))?;
+    let parts: Vec<&str> = key.trim().split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        return Err(err("empty key segment"));
+    }
+    let value = parse_value(raw.trim());
+    let (last, parents) = parts.split_last().ok_or_else(|| err("empty key"))?;
+    let mut cur = table;
+    for (i, part) in parents.iter().enumerate() {
+        let entry = cur.entry((*part).to_owned()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        cur = entry.as_table_mut().ok_or_else(|| ConfigError::Override {
+            arg: arg.to_owned(),
+            message: format!("`{}` is not a table", parts[..=i].join(".")),
+        })?;
+    }
+    cur.insert((*last).to_owned(), value);
+    Ok(())
+}
+
+fn parse_value(raw: &str) -> toml::Value {
+    let doc = format!("v = {raw}");
+    match doc.parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").unwrap_or_else(|| toml::Value::String(raw.to_owned())),
+        Err(_) => toml::Value::String(raw.to_owned()),
+    }
+}
+
+/// Collapses a possibly multi-line error message (toml's include a source excerpt) into one line.
+fn one_line(e: &dyn std::fmt::Display) -> String {
+    let text = e.to_string();
+    let lines: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('|')).collect();
+    // toml's syntax errors are "TOML parse error at line L, column C" + excerpt lines + the message; keep the
+    // location and the message, drop the excerpt (lines like "3 | key = " and "  ^").
+    let kept: Vec<&str> =
+        lines.into_iter().filter(|l| !l.chars().next().is_some_and(|c| c.is_ascii_digit()) && *l != "^").collect();
+    kept.join(": ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p(text: &str, sets: &[&str]) -> Result<Config, ConfigError> {
+        let sets: Vec<String> = sets.iter().map(|s| (*s).to_owned()).collect();
+        parse(text, Path::new("c.toml"), &sets)
+    }
+
+    #[test]
+    fn minimal_config_takes_documented_defaults() {
+        let c = p("[scan]\npath = \"scan\"\n", &[]).unwrap();
+        assert_eq!(c.scan.path, PathBuf::from("scan"));
+        assert_eq!(c.scan.format, ScanFormat::Auto);
+        assert_eq!(c.output.path, PathBuf::from("run"));
+        assert_eq!(c.images, ImagesConfig::default());
+        assert_eq!(c.tracer.settings(), tracer::TracerSettings::default());
+    }
+
+    #[test]
+    fn unknown_key_error_names_the_dotted_key_on_one_line() {
+        let e = p("[scan]\npath = \"s\"\n[tracer]\nmax_dept = 3\n", &[]).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("tracer.max_dept"), "{msg}");
+        assert!(!msg.contains('\n'), "{msg}");
+    }
+
+    #[test]
+    fn wrong_type_error_names_the_key() {
+        let e = p("[scan]\npath = \"s\"\n[tracer]\nmax_depth = \"deep\"\n", &[]).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("`tracer.max_depth`"), "{msg}");
+        assert!(!msg.contains('\n'), "{msg}");
+    }
+
+    #[test]
+    fn missing_scan_path_names_scan() {
+        let e = p("[scan]\nformat = \"obj\"\n", &[]).unwrap_err();
+        assert!(e.to_string().contains("`scan.path`: missing field `path`"), "{e}");
+        let e = p("[output]\npath = \"o\"\n", &[]).unwrap_err();
+        assert!(e.to_string().contains("`scan`: missing field `scan`"), "{e}");
+    }
+
+    #[test]
+    fn syntax_error_is_one_line_with_location() {
+        let e = p("[scan\npath = 1\n", &[]).unwrap_err();
+        let msg = e.to_string();
+        assert!(!msg.contains('\n'), "{msg}");
+        assert!(msg.contains("line 1"), "{msg}");
+    }
+
+    #[test]
+    fn overrides_parse_toml_values_and_fall_back_to_strings() {
+        let c = p(
+            "[scan]\npath = \"a\"\n",
+            &["scan.path=/data/x y", "tracer.max_depth=7", "images.cameras=[\"v1\", \"v2\"]", "output.path=\"o\""],
+        )
+        .unwrap();
+        assert_eq!(c.scan.path, PathBuf::from("/data/x y"));
+        assert_eq!(c.tracer.max_depth, 7);
+        assert_eq!(c.images.cameras, vec!["v1".to_owned(), "v2".to_owned()]);
+        assert_eq!(c.output.path, PathBuf::from("o"));
+    }
+
+    #[test]
+    fn override_of_unknown_key_is_rejected_by_name() {
+        let e = p("[scan]\npath = \"a\"\n", &["images.downscal=2"]).unwrap_err();
+        assert!(e.to_string().contains("images.downscal"), "{e}");
+    }
+
+    #[test]
+    fn override_through_a_non_table_is_rejected() {
+        let e = p("[scan]\npath = \"a\"\n", &["scan.path.x=2"]).unwrap_err();
+        assert!(e.to_string().contains("`scan.path` is not a table"), "{e}");
+        let e = p("[scan]\npath = \"a\"\n", &["noequals"]).unwrap_err();
+        assert!(matches!(e, ConfigError::Override { .. }));
+    }
+}

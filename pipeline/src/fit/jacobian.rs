@@ -1,0 +1,127 @@
+//! Per-pixel Jacobians of pixel radiance with respect to the per-object unknowns.
+//!
+//! - Emission: radiance is linear in emission and emission channel c only affects image channel c, so
+//!   rendering the scene with object k's emission set to (1, 1, 1) and every other emission to 0 gives, per
+//!   pixel and channel, exactly ∂I_c/∂e_{k,c} (a "basis render"). Light selection then samples object k
+//!   itself, so these columns have next-event-estimation noise even for a light no photo sees — far lower
+//!   than the gradient path's estimate at e_k = 0, which finds a non-emitting object only by BSDF sampling.
+//! - Base colour: `gradient_pixels` over one pixel with weight (1, 1, 1) returns that pixel's row
+//!   ∂I_c/∂ρ_{k,c} (base colour acts per channel).
+
+use rayon::prelude::*;
+use tracer::{PixelRef, TracerError};
+
+/// `cols[k][j]` = ∂I_j/∂e_k per channel (as f64 RGB) for every object k.
+pub fn emission_columns(
+    ctx: &Ctx<'_>,
+    materials: &[tracer::Material],
+    pixels: &[PixelRef],
+    spp: u32,
+    iteration_key: u64,
+) -> Result<Vec<Vec<[f64; 3]>>, TracerError> {
+    let k_count = materials.len();
+    (0..k_count)
+        .map(|k| {
+            let mut emission = vec![glam::Vec3::ZERO; k_count];
+            emission[k] = glam::Vec3::ONE;
+            let params = tracer::Params { materials: materials.to_vec(), emission };
+            let v = tracer::render_pixels(
+                ctx.scene,
+                &params,
+                ctx.cameras,
+                pixels,
+                spp,
+                ctx.settings,
+                ctx.seed,
+                iteration_key,
+            )?;
+            Ok(v.iter().map(|c| [f64::from(c.x), f64::from(c.y), f64::from(c.z)]).collect())
+        })
+        .collect()
+}
+
+/// One pixel's Jacobian row: `base_color[k]` = ∂I/∂ρ_k and `emission[k]` = ∂I/∂e_k, per channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PixelRow {
+    pub base_color: Vec<[f64; 3]>,
+    pub emission: Vec<[f64; 3]>,
+}
+
+/// The Jacobian row of every pixel from its gradient paths. The emission entries of objects that currently
+/// emit are found by next-event estimation (low noise); those of non-emitting objects only by BSDF sampling,
+/// which is still unbiased and, for the large visible surfaces that such columns matter for, not noisy.
+pub fn pixel_rows(
+    ctx: &Ctx<'_>,
+    params: &tracer::Params,
+    pixels: &[PixelRef],
+    spp: u32,
+    iteration_key: u64,
+) -> Result<Vec<PixelRow>, TracerError> {
+    pixels
+        .par_iter()
+        .map(|p| {
+            let g = tracer::gradient_pixels(
+                ctx.scene,
+                params,
+                ctx.cameras,
+                std::slice::from_ref(p),
+                &[glam::Vec3::ONE],
+                spp,
+                ctx.settings,
+                ctx.seed,
+                iteration_key,
+            )?;
+            Ok(PixelRow {
+                base_color: g.materials.iter().map(|m| m.base_color.to_array()).collect(),
+                emission: g.emission.iter().map(|e| e.to_array()).collect(),
+            })
+        })
+        .collect()
+}
+
+/// What every tracer call of the fit shares.
+#[derive(Debug, Clone, Copy)]
+pub struct Ctx<'a> {
+    pub scene: &'a tracer::Scene,
+    pub cameras: &'a [tracer::Camera],
+    pub settings: &'a tracer::TracerSettings,
+    pub seed: u64,
+}
+
+/// Full Jacobian rows per pixel and channel: `rows[j][c]` holds, for every object k, ∂I_{j,c}/∂θ_k for
+/// θ = (base colour channel c, roughness, specular, emission channel c). Roughness and specular act on all
+/// channels, so each channel needs its own gradient pass (weight = unit vector of c, same paths).
+pub fn channel_rows(
+    ctx: &Ctx<'_>,
+    params: &tracer::Params,
+    pixels: &[PixelRef],
+    spp: u32,
+    iteration_key: u64,
+) -> Result<Vec<[Vec<[f64; 4]>; 3]>, TracerError> {
+    pixels
+        .par_iter()
+        .map(|p| {
+            let row = |c: usize| -> Result<Vec<[f64; 4]>, TracerError> {
+                let mut w = glam::Vec3::ZERO;
+                w[c] = 1.0;
+                let g = tracer::gradient_pixels(
+                    ctx.scene,
+                    params,
+                    ctx.cameras,
+                    std::slice::from_ref(p),
+                    &[w],
+                    spp,
+                    ctx.settings,
+                    ctx.seed,
+                    iteration_key,
+                )?;
+                Ok(g.materials
+                    .iter()
+                    .zip(&g.emission)
+                    .map(|(m, e)| [m.base_color[c], m.roughness, m.specular, e[c]])
+                    .collect())
+            };
+            Ok([row(0)?, row(1)?, row(2)?])
+        })
+        .collect()
+}

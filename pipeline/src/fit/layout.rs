@@ -1,0 +1,92 @@
+//! The flat parameter vector of the per-object fit and its mapping to the tracer's tables.
+//!
+//! Object k owns entries `9k .. 9k + 9`: base colour RGB, roughness, metallic, specular, emission RGB.
+//! Values are kept in f64 (the optimiser's precision, and what checkpoints store) and converted to f32 for
+//! the tracer, so an interrupted and resumed run sees exactly the same numbers as an uninterrupted one.
+
+use glam::Vec3;
+
+/// Entries per object.
+pub const PER_OBJECT: usize = 9;
+pub const BASE_COLOR: usize = 0;
+pub const ROUGHNESS: usize = 3;
+pub const METALLIC: usize = 4;
+pub const SPECULAR: usize = 5;
+pub const EMISSION: usize = 6;
+
+/// Upper bound of emission in the optimiser's box. Emission is radiance in image units and has no natural
+/// upper limit; 1e6 only keeps a diverging run finite (HDR pixels of 1e5 are the largest issue 7 asks for).
+pub const EMISSION_MAX: f64 = 1e6;
+
+/// Index of parameter `p` of object `k`.
+#[inline]
+#[must_use]
+pub fn idx(k: usize, p: usize) -> usize {
+    PER_OBJECT * k + p
+}
+
+/// The starting point: grey diffuse, roughness ½, no emission.
+#[must_use]
+pub fn initial(objects: usize) -> Vec<f64> {
+    let mut x = vec![0.0; PER_OBJECT * objects];
+    for k in 0..objects {
+        for c in 0..3 {
+            x[idx(k, BASE_COLOR + c)] = 0.5;
+        }
+        x[idx(k, ROUGHNESS)] = 0.5;
+    }
+    x
+}
+
+/// Box domain of every entry: materials in [0, 1], emission in [0, EMISSION_MAX].
+#[must_use]
+pub fn bounds(objects: usize) -> (Vec<f64>, Vec<f64>) {
+    let lo = vec![0.0; PER_OBJECT * objects];
+    let mut hi = vec![1.0; PER_OBJECT * objects];
+    for k in 0..objects {
+        for c in 0..3 {
+            hi[idx(k, EMISSION + c)] = EMISSION_MAX;
+        }
+    }
+    (lo, hi)
+}
+
+/// The tracer's parameter tables (material slot k = emitter slot k = object k).
+#[must_use]
+pub fn to_params(x: &[f64]) -> tracer::Params {
+    let n = x.len() / PER_OBJECT;
+    let v3 = |k: usize, p: usize| Vec3::new(x[idx(k, p)] as f32, x[idx(k, p + 1)] as f32, x[idx(k, p + 2)] as f32);
+    tracer::Params {
+        materials: (0..n)
+            .map(|k| tracer::Material {
+                base_color: v3(k, BASE_COLOR),
+                roughness: x[idx(k, ROUGHNESS)] as f32,
+                metallic: x[idx(k, METALLIC)] as f32,
+                specular: x[idx(k, SPECULAR)] as f32,
+            })
+            .collect(),
+        emission: (0..n).map(|k| v3(k, EMISSION)).collect(),
+    }
+}
+
+/// The tracer's gradient table as a flat vector in the same layout.
+#[must_use]
+pub fn flatten_grads(g: &tracer::Grads, objects: usize) -> Vec<f64> {
+    let mut out = vec![0.0; PER_OBJECT * objects];
+    for k in 0..objects {
+        if let Some(m) = g.materials.get(k) {
+            out[idx(k, BASE_COLOR)] = m.base_color.x;
+            out[idx(k, BASE_COLOR + 1)] = m.base_color.y;
+            out[idx(k, BASE_COLOR + 2)] = m.base_color.z;
+            out[idx(k, ROUGHNESS)] = m.roughness;
+            out[idx(k, METALLIC)] = m.metallic;
+            out[idx(k, SPECULAR)] = m.specular;
+        }
+        if let Some(e) = g.emission.get(k) {
+            out[idx(k, EMISSION)] = e.x;
+            out[idx(k, EMISSION + 1)] = e.y;
+            out[idx(k, EMISSION + 2)] = e.z;
+        }
+    }
+    out
+}

@@ -1,0 +1,145 @@
+//! Small linear solves used by the fit: a box-constrained quadratic by projected coordinate descent, and an
+//! L1 (or L2) data fit with per-variable linear penalties, box bounds and a proximal (Levenberg–Marquardt)
+//! term, by iteratively reweighted least squares (IRLS).
+
+/// Which data term [`solve`] minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DataLoss {
+    /// (1/M) Σ_j |r_j| — the paper's loss (Eq. 3).
+    L1,
+    /// (1/M) Σ_j r_j² / 2.
+    L2,
+}
+
+/// Minimise `(1/M) Σ_j ρ(t_j − Σ_i cols[i][j] x_i) + Σ_i penalty_i x_i + ½ Σ_i prox_i (x_i − anchor_i)²`
+/// subject to `lo ≤ x ≤ hi`, where ρ is the data loss. `cols` holds one column (M values) per variable.
+#[derive(Debug, Clone)]
+pub struct Problem<'a> {
+    pub cols: &'a [Vec<f64>],
+    pub target: &'a [f64],
+    /// A second, independent estimate of the columns and the target (instrumental variables). When given,
+    /// the normal equations use the cross products ½(C₁ᵀWC₂ + C₂ᵀWC₁) and ½(C₁ᵀWt₂ + C₂ᵀWt₁), whose
+    /// expectations are those of the noise-free columns: a least-squares fit on noisy Monte Carlo columns is
+    /// otherwise biased towards zero (errors in variables; measured −4.7 % on the hidden light at 32 paths).
+    pub second: Option<(&'a [Vec<f64>], &'a [f64])>,
+    pub penalty: &'a [f64],
+    pub prox: &'a [f64],
+    pub anchor: &'a [f64],
+    pub lo: &'a [f64],
+    pub hi: &'a [f64],
+}
+
+/// Minimises ½ xᵀAx − bᵀx over the box by cyclic exact coordinate minimisation with projection. A is
+/// symmetric positive semi-definite, row-major n×n; coordinates with A_ii = 0 are left unchanged.
+pub fn box_qp(a: &[f64], b: &[f64], lo: &[f64], hi: &[f64], x: &mut [f64], sweeps: usize) {
+    let n = b.len();
+    for _ in 0..sweeps {
+        let mut max_change: f64 = 0.0;
+        for i in 0..n {
+            let aii = a[i * n + i];
+            if aii <= 0.0 {
+                continue;
+            }
+            let row = &a[i * n..(i + 1) * n];
+            let ax: f64 = row.iter().zip(x.iter()).map(|(r, v)| r * v).sum();
+            let new = (x[i] - (ax - b[i]) / aii).clamp(lo[i], hi[i]);
+            max_change = max_change.max((new - x[i]).abs() * aii.sqrt());
+            x[i] = new;
+        }
+        // Converged when no coordinate moves by more than 1e-12 in the metric of A (well below f32 precision
+        // of the tracer's parameters).
+        if max_change < 1e-12 {
+            break;
+        }
+    }
+}
+
+/// Solves a [`Problem`] starting from `x`; L1 by `irls_iters` reweighting rounds.
+pub fn solve(p: &Problem<'_>, loss: DataLoss, x: &mut [f64], irls_iters: usize) {
+    let n = p.cols.len();
+    let m = p.target.len();
+    if n == 0 || m == 0 {
+        return;
+    }
+    // IRLS floor: residuals below 1 % of the mean |target| are weighted as if they were that size (a Huber
+    // corner), which keeps the weights bounded when a residual vanishes and is far below the 5–10 % noise of
+    // a pixel estimated with tens of paths.
+    let mean_abs = p.target.iter().map(|t| t.abs()).sum::<f64>() / m as f64;
+    let floor = (0.01 * mean_abs).max(f64::MIN_POSITIVE);
+    let rounds = if loss == DataLoss::L1 { irls_iters.max(1) } else { 1 };
+    let mut w = vec![1.0; m];
+    let mut a = vec![0.0; n * n];
+    let mut b = vec![0.0; n];
+    let (cols2, target2) = p.second.unwrap_or((p.cols, p.target));
+    for _ in 0..rounds {
+        if loss == DataLoss::L1 {
+            for j in 0..m {
+                let pred: f64 = (0..n).map(|i| 0.5 * (p.cols[i][j] + cols2[i][j]) * x[i]).sum();
+                let t = 0.5 * (p.target[j] + target2[j]);
+                // |r| ≈ r² / (2|r_old|) + const: weight 1/|r_old| on the squared residual of ½ r².
+                w[j] = 1.0 / (t - pred).abs().max(floor);
+            }
+        }
+        a.iter_mut().for_each(|v| *v = 0.0);
+        for i in 0..n {
+            let (ci, di) = (&p.cols[i], &cols2[i]);
+            b[i] = (0..m).map(|j| 0.5 * w[j] * (ci[j] * target2[j] + di[j] * p.target[j])).sum::<f64>() / m as f64
+                - p.penalty[i]
+                + p.prox[i] * p.anchor[i];
+            for k in i..n {
+                let (ck, dk) = (&p.cols[k], &cols2[k]);
+                let v = (0..m).map(|j| 0.5 * w[j] * (ci[j] * dk[j] + di[j] * ck[j])).sum::<f64>() / m as f64;
+                a[i * n + k] = v;
+                a[k * n + i] = v;
+            }
+            a[i * n + i] += p.prox[i];
+        }
+        box_qp(&a, &b, p.lo, p.hi, x, 20_000);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_qp_matches_the_unconstrained_solution_and_clamps() {
+        // A = [[2,1],[1,2]], b = [1,1] → x = (1/3, 1/3); with x1 ≤ 0.1 → x1 = 0.1, x0 = (1 − 0.1)/2.
+        let a = [2.0, 1.0, 1.0, 2.0];
+        let mut x = [0.0, 0.0];
+        box_qp(&a, &[1.0, 1.0], &[-10.0; 2], &[10.0; 2], &mut x, 1000);
+        assert!((x[0] - 1.0 / 3.0).abs() < 1e-9 && (x[1] - 1.0 / 3.0).abs() < 1e-9);
+        let mut x = [0.0, 0.0];
+        box_qp(&a, &[1.0, 1.0], &[-10.0; 2], &[10.0, 0.1], &mut x, 1000);
+        assert!((x[1] - 0.1).abs() < 1e-12 && (x[0] - 0.45).abs() < 1e-9);
+    }
+
+    #[test]
+    fn l1_fit_ignores_outliers_and_penalty_zeroes_useless_columns() {
+        // t = 2·c0 exactly on 95 % of rows, wild outliers on the rest; c1 is unrelated noise-free structure.
+        let m = 200;
+        let c0: Vec<f64> = (0..m).map(|j| 1.0 + (j % 7) as f64 * 0.1).collect();
+        let c1: Vec<f64> = (0..m).map(|j| ((j * 37) % 11) as f64 * 0.05).collect();
+        let t: Vec<f64> = (0..m).map(|j| if j % 20 == 0 { 50.0 } else { 2.0 * c0[j] }).collect();
+        let cols = vec![c0, c1];
+        let p = Problem {
+            cols: &cols,
+            target: &t,
+            second: None,
+            penalty: &[0.0, 0.01],
+            prox: &[0.0; 2],
+            anchor: &[0.0; 2],
+            lo: &[0.0; 2],
+            hi: &[1e6; 2],
+        };
+        let mut x = vec![1.0, 1.0];
+        solve(&p, DataLoss::L1, &mut x, 50);
+        assert!((x[0] - 2.0).abs() < 0.02, "{x:?}");
+        assert!(x[1] < 0.02, "{x:?}");
+        // L2 is pulled by the outliers.
+        let mut y = vec![1.0, 1.0];
+        solve(&p, DataLoss::L2, &mut y, 1);
+        assert!((y[0] - 2.0).abs() > 0.1 || y[1] > 0.1, "{y:?}");
+    }
+}

@@ -1,0 +1,100 @@
+//! The pixels a fit uses: every valid pixel of every image with its target radiance and the object its centre
+//! sees, split once into a training set and a held-out set (for model decisions), and seeded batch draws.
+
+use glam::{Vec2, Vec3};
+use tracer::PixelRef;
+
+/// One training or held-out pixel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    pub pixel: PixelRef,
+    pub target: Vec3,
+    /// Object seen through the pixel centre, `None` when the ray leaves the scene.
+    pub object: Option<u32>,
+}
+
+/// SplitMix64 (Steele et al. 2014): the fit's counter-based random numbers; a value depends only on its key.
+#[must_use]
+pub fn mix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A uniform number in [0, 1) keyed by (seed, stream, a, b).
+#[must_use]
+pub fn uniform(seed: u64, stream: u64, a: u64, b: u64) -> f64 {
+    let h = mix64(mix64(mix64(seed ^ mix64(stream)) ^ a) ^ b);
+    (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// Stream ids of [`uniform`], one per use, so different uses never share numbers.
+pub mod stream {
+    pub const HOLDOUT: u64 = 1;
+    pub const BATCH: u64 = 2;
+    pub const SOLVE_PIXELS: u64 = 3;
+}
+
+/// Training and held-out pixels.
+#[derive(Debug, Clone, Default)]
+pub struct PixelSets {
+    pub train: Vec<Sample>,
+    pub holdout: Vec<Sample>,
+    /// Training pixels whose centre sees each object.
+    pub train_per_object: Vec<usize>,
+}
+
+/// Collects the valid pixels (mask ≠ 0 and finite RGB) of all images.
+#[must_use]
+pub fn collect(
+    scene: &tracer::Scene,
+    cameras: &[tracer::Camera],
+    images: &[ingest::photo::LinearImage],
+    objects: usize,
+    holdout_fraction: f64,
+    seed: u64,
+) -> PixelSets {
+    let mut sets = PixelSets { train_per_object: vec![0; objects], ..Default::default() };
+    for (view, (cam, img)) in cameras.iter().zip(images).enumerate() {
+        for y in 0..img.height.min(cam.height) {
+            for x in 0..img.width.min(cam.width) {
+                let i = (y * img.width + x) as usize;
+                let t = Vec3::new(img.rgb[3 * i], img.rgb[3 * i + 1], img.rgb[3 * i + 2]);
+                if img.mask[i] == 0 || !t.is_finite() {
+                    continue;
+                }
+                let (o, d) = cam.ray(Vec2::new(x as f32, y as f32));
+                let object = scene.intersect(o, d, f32::INFINITY).map(|(hit, _)| scene.material_of(hit.tri));
+                let pixel = PixelRef { view: view as u32, x, y };
+                let s = Sample { pixel, target: t, object };
+                let key = (u64::from(pixel.view) << 40) | (u64::from(y) << 20) | u64::from(x);
+                if uniform(seed, stream::HOLDOUT, key, 0) < holdout_fraction {
+                    sets.holdout.push(s);
+                } else {
+                    if let Some(k) = object
+                        && (k as usize) < objects
+                    {
+                        sets.train_per_object[k as usize] += 1;
+                    }
+                    sets.train.push(s);
+                }
+            }
+        }
+    }
+    sets
+}
+
+/// `n` samples drawn uniformly with replacement from `from`, keyed by (seed, stream, draw).
+#[must_use]
+pub fn draw(from: &[Sample], n: usize, seed: u64, stream: u64, draw: u64) -> Vec<Sample> {
+    if from.is_empty() {
+        return Vec::new();
+    }
+    (0..n as u64)
+        .map(|i| {
+            let u = uniform(seed, stream, draw, i);
+            from[((u * from.len() as f64) as usize).min(from.len() - 1)]
+        })
+        .collect()
+}

@@ -1,0 +1,21 @@
+//! Library behind the `pipeline` binary: configuration, the resolved plan, stage manifests and the stage
+//! runner, the stages themselves, and the user-facing outputs (materials.json, report.html).
+//!
+//! Code map: [`config`] (TOML as written, `--set`) → [`plan`] (validated, paths resolved, stage list) →
+//! [`runner`] (skip/rerun decisions, [`manifest`]s) → [`stages`] (the work) → [`materials`], [`report`].
+//! [`fit`] holds the per-object optimisation and [`synth`] the synthetic-scan generator.
+
+pub mod atomic_file;
+pub mod cli;
+pub mod config;
+pub mod export;
+pub mod fit;
+pub mod manifest;
+pub mod materials;
+pub mod plan;
+pub mod render_cmd;
+pub mod report;
+pub mod runner;
+pub mod stages;
+pub mod subdivide;
+pub mod synth;

@@ -1,0 +1,182 @@
+//! `materials.json`, schema `ipt-materials/1`: the per-object result a user reads and reuses (and
+//! `pipeline render --materials` reads back). A compatibility boundary: fields are only ever added under a new
+//! format tag.
+//!
+//! ```json
+//! {"format": "ipt-materials/1", "emission_profile": "uniform",
+//!  "objects": [{"id": 3, "label": "wall", "triangles": 12, "base_color": [0.7, 0.2, 0.2], "roughness": 0.5,
+//!               "metallic": 0.0, "specular": 0.0, "emission": [0, 0, 0], "model": "diffuse"}]}
+//! ```
+//! Values are linear; `emission` is radiance in the units of the input images (the scale `e` of the
+//! emission profile: `L_e = e` for `uniform`, `L_e = e (i·n)+` for `cosine`).
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+use tracer::{EmissionProfile, Material, Params};
+
+/// The format tag.
+pub const MATERIALS_FORMAT: &str = "ipt-materials/1";
+
+/// The file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialsFile {
+    pub format: String,
+    pub emission_profile: EmissionProfile,
+    pub objects: Vec<ObjectMaterial>,
+}
+
+/// One object's result.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectMaterial {
+    /// Group id of the object in the scan (Matterport `segment_id`, OBJ group index, ...).
+    pub id: i64,
+    pub label: String,
+    /// Number of triangles of the object.
+    pub triangles: usize,
+    pub base_color: [f32; 3],
+    pub roughness: f32,
+    pub metallic: f32,
+    pub specular: f32,
+    pub emission: [f32; 3],
+    /// The model the fit chose for the object (e.g. `diffuse`, `specular+emission`).
+    pub model: String,
+}
+
+/// Errors reading a materials file or matching it to a scene.
+#[derive(Debug, thiserror::Error)]
+pub enum MaterialsError {
+    #[error("{path}: {source}", path = .path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: not an ipt-materials/1 file: {message}", path = .path.display())]
+    Parse { path: PathBuf, message: String },
+    #[error("{path}: object {index} (id {id}): {message}", path = .path.display())]
+    Object { path: PathBuf, index: usize, id: i64, message: String },
+}
+
+impl ObjectMaterial {
+    /// The tracer's material.
+    #[must_use]
+    pub fn material(&self) -> Material {
+        Material {
+            base_color: Vec3::from(self.base_color),
+            roughness: self.roughness,
+            metallic: self.metallic,
+            specular: self.specular,
+        }
+    }
+}
+
+impl MaterialsFile {
+    /// Reads and checks a file: the format tag, finite values, parameters in [0, 1], emission ≥ 0.
+    pub fn read(path: &Path) -> Result<Self, MaterialsError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|source| MaterialsError::Io { path: path.to_path_buf(), source })?;
+        let file: Self = serde_json::from_str(&text)
+            .map_err(|e| MaterialsError::Parse { path: path.to_path_buf(), message: e.to_string() })?;
+        if file.format != MATERIALS_FORMAT {
+            return Err(MaterialsError::Parse {
+                path: path.to_path_buf(),
+                message: format!("format is `{}`, expected `{MATERIALS_FORMAT}`", file.format),
+            });
+        }
+        for (index, o) in file.objects.iter().enumerate() {
+            let bad = |message: &str| MaterialsError::Object {
+                path: path.to_path_buf(),
+                index,
+                id: o.id,
+                message: message.into(),
+            };
+            let unit = |x: f32| (0.0..=1.0).contains(&x);
+            if !(o.base_color.iter().all(|&c| unit(c)) && unit(o.roughness) && unit(o.metallic) && unit(o.specular)) {
+                return Err(bad("base_color, roughness, metallic and specular must lie in [0, 1]"));
+            }
+            if !o.emission.iter().all(|&e| e.is_finite() && e >= 0.0) {
+                return Err(bad("emission must be finite and non-negative"));
+            }
+        }
+        Ok(file)
+    }
+
+    /// The parameter tables for a scene whose objects have `ids` (material slot i = emitter slot i = object
+    /// i). Every object must appear in the file; extra entries are ignored.
+    pub fn params_for(&self, ids: &[i64], path: &Path) -> Result<Params, MaterialsError> {
+        let mut params = Params { materials: Vec::with_capacity(ids.len()), emission: Vec::with_capacity(ids.len()) };
+        for (index, &id) in ids.iter().enumerate() {
+            let o = self.objects.iter().find(|o| o.id == id).ok_or_else(|| MaterialsError::Object {
+                path: path.to_path_buf(),
+                index,
+                id,
+                message: "the scene has this object but the materials file does not".into(),
+            })?;
+            params.materials.push(o.material());
+            params.emission.push(Vec3::from(o.emission));
+        }
+        Ok(params)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> MaterialsFile {
+        MaterialsFile {
+            format: MATERIALS_FORMAT.into(),
+            emission_profile: EmissionProfile::Uniform,
+            objects: vec![ObjectMaterial {
+                id: 7,
+                label: "lamp".into(),
+                triangles: 2,
+                base_color: [0.5, 0.25, 0.125],
+                roughness: 0.5,
+                metallic: 0.0,
+                specular: 0.5,
+                emission: [10.0, 9.0, 8.0],
+                model: "diffuse+emission".into(),
+            }],
+        }
+    }
+
+    #[test]
+    fn json_has_exactly_the_documented_keys_and_round_trips() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.json");
+        std::fs::write(&path, serde_json::to_string(&sample()).unwrap()).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let mut top: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
+        top.sort_unstable();
+        assert_eq!(top, ["emission_profile", "format", "objects"]);
+        assert_eq!(v["emission_profile"], "uniform");
+        let mut keys: Vec<&str> = v["objects"][0].as_object().unwrap().keys().map(String::as_str).collect();
+        keys.sort_unstable();
+        assert_eq!(
+            keys,
+            ["base_color", "emission", "id", "label", "metallic", "model", "roughness", "specular", "triangles"]
+        );
+        assert_eq!(MaterialsFile::read(&path).unwrap(), sample());
+    }
+
+    #[test]
+    fn out_of_domain_values_and_missing_objects_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.json");
+        let mut m = sample();
+        m.objects[0].roughness = 1.5;
+        std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
+        let e = MaterialsFile::read(&path).unwrap_err();
+        assert!(e.to_string().contains("id 7"), "{e}");
+        let e = sample().params_for(&[7, 8], &path).unwrap_err();
+        assert!(matches!(e, MaterialsError::Object { index: 1, id: 8, .. }), "{e}");
+        let p = sample().params_for(&[7], &path).unwrap();
+        assert_eq!(p.emission, [Vec3::new(10.0, 9.0, 8.0)]);
+        assert_eq!(p.materials[0].base_color, Vec3::new(0.5, 0.25, 0.125));
+    }
+}

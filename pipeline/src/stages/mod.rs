@@ -1,0 +1,61 @@
+//! The stages' work (what [`crate::runner`] schedules): one module per stage, each writing its artefacts
+//! into `output.path/<stage>/` atomically and returning the list of files it wrote (relative to
+//! `output.path`), which the runner hashes into the stage's manifest.
+
+pub mod export;
+pub mod ingest;
+pub mod object;
+pub mod object_result;
+pub mod preprocess;
+
+use std::path::PathBuf;
+
+use crate::atomic_file::AtomicWriteError;
+use crate::plan::StageId;
+use crate::runner::{StageContext, StageExecutor};
+
+/// Why a stage failed.
+#[derive(Debug, thiserror::Error)]
+pub enum StageError {
+    #[error("{path}: {source}", path = .path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Write(#[from] AtomicWriteError),
+    /// An artefact of an earlier stage (or the config) is not what this stage needs.
+    #[error("{path}: {message}", path = .path.display())]
+    Artefact { path: PathBuf, message: String },
+    #[error(transparent)]
+    Scan(#[from] ::ingest::IngestError),
+    #[error(transparent)]
+    Photo(#[from] ::ingest::photo::PhotoError),
+    #[error("tracer: {0}")]
+    Tracer(#[from] tracer::TracerError),
+    #[error(transparent)]
+    Fit(#[from] crate::fit::FitError),
+    #[error(transparent)]
+    Materials(#[from] crate::materials::MaterialsError),
+}
+
+/// The real stages.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Stages;
+
+impl StageExecutor for Stages {
+    fn is_implemented(&self, stage: StageId) -> bool {
+        stage != StageId::Triangle
+    }
+
+    fn run(&mut self, ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
+        match ctx.stage {
+            StageId::Ingest => ingest::run(ctx),
+            StageId::Preprocess => preprocess::run(ctx),
+            StageId::Object => object::run(ctx),
+            StageId::Triangle => Ok(Vec::new()),
+            StageId::Export => export::run(ctx),
+        }
+    }
+}

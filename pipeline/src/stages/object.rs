@@ -1,0 +1,148 @@
+//! The `object` stage: per-object material and emission fit ([`crate::fit::fit_objects`]) on the ingested
+//! mesh and the prepared photos, with checkpoints so an interrupted run resumes where it stopped.
+//!
+//! Artefacts in `output.path/object/`:
+//! - `materials.json` — the result in the `ipt-materials/1` schema ([`crate::materials`]);
+//! - `history.json` — `{"format": "ipt-object-history/1", "history": [...], "why": [...]}`: the fit's
+//!   per-iteration trajectory and each object's model decision;
+//! - `checkpoint.json` while the stage runs — `{"format": "ipt-object-checkpoint/1", "config_sha256",
+//!   "inputs_sha256", "state"}`, rewritten atomically at every checkpoint the fit hands out and deleted once
+//!   the outputs above are written. A rerun resumes from it only when both hashes match the current run
+//!   (same config section, same inputs), so a stale checkpoint is never mixed into a different fit.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::StageError;
+use super::ingest::Ingested;
+use super::object_result::{
+    CHECKPOINT_FILE, CHECKPOINT_FORMAT, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE,
+};
+use super::preprocess::Prepared;
+use crate::atomic_file::write_json_atomic;
+use crate::config::profile_name;
+use crate::fit::{FitError, FitInputs, FitState, ObjectDesc};
+use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
+use crate::runner::StageContext;
+
+/// `checkpoint.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Checkpoint {
+    pub format: String,
+    pub config_sha256: String,
+    pub inputs_sha256: String,
+    pub state: FitState,
+}
+
+/// The checkpoint of `dir` if it belongs to this exact computation (same config and inputs hashes).
+#[must_use]
+pub fn resumable_checkpoint(dir: &Path, config_sha256: &str, inputs_sha256: &str) -> Option<FitState> {
+    let path = dir.join(CHECKPOINT_FILE);
+    let text = std::fs::read_to_string(&path).ok()?;
+    let cp: Checkpoint = match serde_json::from_str(&text) {
+        Ok(cp) => cp,
+        Err(e) => {
+            tracing::warn!("{}: unreadable checkpoint ignored: {e}", path.display());
+            return None;
+        }
+    };
+    if cp.format != CHECKPOINT_FORMAT || cp.config_sha256 != config_sha256 || cp.inputs_sha256 != inputs_sha256 {
+        eprintln!("[object] checkpoint belongs to another config or other inputs; starting afresh");
+        return None;
+    }
+    Some(cp.state)
+}
+
+/// Runs the stage.
+pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
+    let plan = ctx.plan;
+    let scene_data = Ingested::read(&plan.output)?;
+    let prepared = Prepared::read(&plan.output)?;
+    let scene = tracer::Scene::new(scene_data.scene_input())?;
+    let cameras = prepared.tracer_cameras();
+    let tris = scene_data.object_triangles();
+    let objects: Vec<ObjectDesc> = scene_data
+        .objects
+        .iter()
+        .zip(&tris)
+        .enumerate()
+        .map(|(i, (o, t))| ObjectDesc { id: o.id, label: scene_data.label(i), triangles: t.clone() })
+        .collect();
+    let settings = plan.tracer.settings();
+    let inputs = FitInputs {
+        scene: &scene,
+        cameras: &cameras,
+        images: &prepared.images,
+        objects: &objects,
+        settings: &plan.object,
+        tracer: &settings,
+    };
+    let resume = resumable_checkpoint(&ctx.dir, &ctx.config_sha256, &ctx.inputs_sha256);
+    if let Some(state) = &resume {
+        eprintln!("[object] resuming from the checkpoint at iteration {}", state.iteration);
+    }
+    let checkpoint_path = ctx.dir.join(CHECKPOINT_FILE);
+    let mut on_checkpoint = |state: &FitState| -> Result<(), FitError> {
+        let cp = Checkpoint {
+            format: CHECKPOINT_FORMAT.into(),
+            config_sha256: ctx.config_sha256.clone(),
+            inputs_sha256: ctx.inputs_sha256.clone(),
+            state: state.clone(),
+        };
+        write_json_atomic(&checkpoint_path, &cp).map_err(|e| FitError::Checkpoint(e.to_string()))?;
+        tracing::debug!(iteration = state.iteration, "checkpoint written");
+        Ok(())
+    };
+    let bar = indicatif::ProgressBar::new(u64::from(plan.object.iterations));
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("[object] {bar:40} {pos}/{len} {msg} ({elapsed}, eta {eta})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let outcome = crate::fit::fit_objects(&inputs, resume, &mut on_checkpoint, &bar)?;
+    bar.finish_and_clear();
+
+    let materials = MaterialsFile {
+        format: MATERIALS_FORMAT.into(),
+        emission_profile: plan.tracer.emission_profile,
+        objects: objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| {
+                let m = outcome.params.materials[i];
+                let e = outcome.params.emission[i];
+                ObjectMaterial {
+                    id: o.id,
+                    label: o.label.clone(),
+                    triangles: o.triangles.len(),
+                    base_color: m.base_color.to_array(),
+                    roughness: m.roughness,
+                    metallic: m.metallic,
+                    specular: m.specular,
+                    emission: e.to_array(),
+                    model: outcome.per_object.get(i).map(|p| p.model.clone()).unwrap_or_default(),
+                }
+            })
+            .collect(),
+    };
+    let history = HistoryFile {
+        format: HISTORY_FORMAT.into(),
+        history: outcome.history.iter().map(|h| serde_json::to_value(h).unwrap_or(serde_json::Value::Null)).collect(),
+        why: outcome.per_object.iter().map(|p| p.why.clone()).collect(),
+    };
+    write_json_atomic(&ctx.dir.join(MATERIALS_FILE), &materials)?;
+    write_json_atomic(&ctx.dir.join(HISTORY_FILE), &history)?;
+    // The result is on disk; the checkpoint has served its purpose.
+    if let Err(e) = std::fs::remove_file(&checkpoint_path)
+        && e.kind() != std::io::ErrorKind::NotFound
+    {
+        return Err(StageError::Io { path: checkpoint_path, source: e });
+    }
+    eprintln!(
+        "[object] fitted {} objects ({} emission profile)",
+        objects.len(),
+        profile_name(plan.tracer.emission_profile)
+    );
+    Ok(vec![PathBuf::from("object").join(MATERIALS_FILE), PathBuf::from("object").join(HISTORY_FILE)])
+}

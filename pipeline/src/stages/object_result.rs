@@ -1,0 +1,41 @@
+//! The `object` stage's artefacts and their readers (see [`super::object`] for what writes them).
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::StageError;
+use crate::materials::MaterialsFile;
+
+/// The checkpoint's file name.
+pub const CHECKPOINT_FILE: &str = "checkpoint.json";
+/// The result's file name (ipt-materials/1).
+pub const MATERIALS_FILE: &str = "materials.json";
+/// The trajectory's file name.
+pub const HISTORY_FILE: &str = "history.json";
+/// Format tag of `checkpoint.json`.
+pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/1";
+/// Format tag of `history.json`.
+pub const HISTORY_FORMAT: &str = "ipt-object-history/1";
+
+/// `history.json`: the fit's trajectory (entries as the fit records them) and per-object model decisions.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HistoryFile {
+    pub format: String,
+    pub history: Vec<serde_json::Value>,
+    /// Per object (materials.json order): why the fit chose its model.
+    pub why: Vec<String>,
+}
+
+/// Reads `run_dir/object/materials.json`.
+pub fn read_result(run_dir: &Path) -> Result<MaterialsFile, StageError> {
+    Ok(MaterialsFile::read(&run_dir.join("object").join(MATERIALS_FILE))?)
+}
+
+/// Reads `run_dir/object/history.json`.
+pub fn read_history(run_dir: &Path) -> Result<HistoryFile, StageError> {
+    let path = run_dir.join("object").join(HISTORY_FILE);
+    let text = std::fs::read_to_string(&path).map_err(|source| StageError::Io { path: path.clone(), source })?;
+    serde_json::from_str(&text).map_err(|e| StageError::Artefact { path, message: e.to_string() })
+}
