@@ -57,7 +57,8 @@ impl Distortion {
         let r2 = x * x + y * y;
         let r4 = r2 * r2;
         let r6 = r4 * r2;
-        let radial = (1.0 + self.k1 * r2 + self.k2 * r4 + self.k3 * r6) / (1.0 + self.k4 * r2 + self.k5 * r4 + self.k6 * r6);
+        let radial =
+            (1.0 + self.k1 * r2 + self.k2 * r4 + self.k3 * r6) / (1.0 + self.k4 * r2 + self.k5 * r4 + self.k6 * r6);
         let xd = x * radial + 2.0 * self.p1 * x * y + self.p2 * (r2 + 2.0 * x * x);
         let yd = y * radial + self.p1 * (r2 + 2.0 * y * y) + 2.0 * self.p2 * x * y;
         DVec2::new(xd, yd)
