@@ -12,30 +12,19 @@ halves a row's bow). The RMS residual is 0.67 px raw, the per-view maximum 2.2 p
 So the test asserts what separates the two: raw fails the 0.3 px criterion and is at least 4x less straight.
 """
 
-import functools
-import os
 import re
 import subprocess
 from pathlib import Path
 
 import cv2
 import numpy as np
-import OpenEXR
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT.parent / "shared" / "data"
+from support import SHARED_DATA, example_binary, linear_to_srgb, read_exr_rgb
+
+DATA = SHARED_DATA
 FOLDER = DATA / "opencv-chessboard"
-TARGET = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
 PATTERN = (9, 6)  # inner corners per row, per column
-
-
-@functools.cache
-def build_example(name):
-    subprocess.run(["cargo", "build", "-p", "ingest", "--example", name], cwd=ROOT, check=True)
-    exe = TARGET / "debug" / "examples" / name
-    assert exe.exists(), exe
-    return exe
 
 
 def read_opencv_yml_matrix(path, name):
@@ -50,12 +39,8 @@ def read_opencv_yml_matrix(path, name):
 
 
 def linear_exr_to_grey8(path):
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        ch = f.channels()
-        rgb = np.stack([ch[c].pixels for c in "RGB"], axis=-1).astype(np.float64)
     # Back to display space (sRGB encoding) so the corner detector sees the contrast it was designed for.
-    v = np.clip(rgb, 0.0, 1.0)
-    enc = np.where(v <= 0.0031308, v * 12.92, 1.055 * v ** (1 / 2.4) - 0.055)
+    enc = linear_to_srgb(read_exr_rgb(path))
     grey = (enc.mean(axis=-1) * 255.0 + 0.5).astype(np.uint8)
     return grey
 
@@ -90,7 +75,7 @@ def test_undistorted_chessboard_corners_lie_on_straight_lines(tmp_path):
         pytest.skip(f"reference data absent: {FOLDER} (see shared/data/README.md)")
     k = read_opencv_yml_matrix(FOLDER / "left_intrinsics.yml", "camera_matrix")
     d = read_opencv_yml_matrix(FOLDER / "left_intrinsics.yml", "distortion_coefficients").ravel()
-    exe = build_example("undistort")
+    exe = example_binary("ingest", "undistort")
     raw_scores, our_scores = [], []
     for jpg in sorted(FOLDER.glob("left*.jpg")):
         raw = find_corners(cv2.imread(str(jpg), cv2.IMREAD_GRAYSCALE))

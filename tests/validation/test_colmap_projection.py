@@ -7,8 +7,6 @@ are compared with pycolmap's. Parameters are realistic lens calibrations (OpenCV
 calibration for OPENCV).
 """
 
-import functools
-import os
 import subprocess
 from pathlib import Path
 
@@ -16,8 +14,8 @@ import numpy as np
 import pycolmap
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-TARGET = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+from support import example_binary
+
 
 CAMERAS = {
     # fx fy cx cy k1 k2 p1 p2 (OpenCV samples/data left_intrinsics.yml, k3 dropped)
@@ -29,14 +27,6 @@ CAMERAS = {
 }
 WIDTH, HEIGHT = 640, 480
 N = 1000
-
-
-@functools.cache
-def build_example(name):
-    subprocess.run(["cargo", "build", "-p", "ingest", "--example", name], cwd=ROOT, check=True)
-    exe = TARGET / "debug" / "examples" / name
-    assert exe.exists(), exe
-    return exe
 
 
 def random_points(seed):
@@ -56,7 +46,7 @@ def test_projection_matches_pycolmap(tmp_path, model):
                     + " ".join(repr(p) for p in params) + "\n")
     pts = random_points(seed=len(model))
     stdin = "\n".join(" ".join(repr(float(v)) for v in p) for p in pts) + "\n"
-    proc = subprocess.run([str(build_example("project")), str(cams), "3"], input=stdin, check=True,
+    proc = subprocess.run([str(example_binary("ingest", "project")), str(cams), "3"], input=stdin, check=True,
                           capture_output=True, text=True)
     ours = np.array([[float(v) for v in line.split()] for line in proc.stdout.splitlines()])
     assert ours.shape == (N, 2)
@@ -77,7 +67,7 @@ def test_projection_matches_pycolmap(tmp_path, model):
 def test_points_behind_the_camera_do_not_project(tmp_path):
     cams = tmp_path / "cameras.txt"
     cams.write_text(f"1 OPENCV {WIDTH} {HEIGHT} " + " ".join(repr(p) for p in CAMERAS["OPENCV"]) + "\n")
-    proc = subprocess.run([str(build_example("project")), str(cams), "1"], input="0.1 0.2 -1\n0 0 0\n0 0 1\n",
+    proc = subprocess.run([str(example_binary("ingest", "project")), str(cams), "1"], input="0.1 0.2 -1\n0 0 0\n0 0 1\n",
                           check=True, capture_output=True, text=True)
     lines = proc.stdout.splitlines()
     assert lines[0] == "nan nan" and lines[1] == "nan nan"

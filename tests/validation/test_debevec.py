@@ -7,9 +7,7 @@ The photos are registered scans whose shifted borders are painted pure blue (0, 
 blue in any exposure is excluded, as the dataset README asks.
 """
 
-import functools
 import json
-import os
 import subprocess
 from pathlib import Path
 
@@ -18,18 +16,10 @@ import numpy as np
 import OpenEXR
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT.parent / "shared" / "data"
+from support import SHARED_DATA, example_binary
+
+DATA = SHARED_DATA
 FOLDER = DATA / "debevec-memorial"
-TARGET = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
-
-
-@functools.cache
-def build_example(name):
-    subprocess.run(["cargo", "build", "-p", "ingest", "--example", name], cwd=ROOT, check=True)
-    exe = TARGET / "debug" / "examples" / name
-    assert exe.exists(), exe
-    return exe
 
 
 def read_bracket_list():
@@ -49,7 +39,7 @@ def test_debevec_merge_matches_memorial_hdr_up_to_scale(tmp_path):
         pytest.skip(f"reference data absent: {FOLDER} (see shared/data/README.md)")
     bracket = read_bracket_list()
     assert len(bracket) == 16
-    exe = build_example("debevec_merge")
+    exe = example_binary("ingest", "debevec_merge")
     out = tmp_path / "memorial_ours.exr"
     args = [str(exe), str(out)]
     for png, t in bracket:

@@ -14,9 +14,7 @@ temporary directory and prints the values it exported as JSON. Then:
    radiance.
 """
 
-import functools
 import json
-import os
 import shutil
 import struct
 import subprocess
@@ -30,30 +28,17 @@ import pytest
 import trimesh
 from plyfile import PlyData
 
-ROOT = Path(__file__).resolve().parents[2]
-TARGET = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+from support import ROOT, example_binary, linear_to_srgb
+
 VALIDATOR = ROOT / "node_modules" / "gltf-validator"
-
-
-@functools.cache
-def build_fixture():
-    subprocess.run(["cargo", "build", "-p", "pipeline", "--example", "export_fixture"], cwd=ROOT, check=True)
-    exe = TARGET / "debug" / "examples" / "export_fixture"
-    assert exe.exists(), exe
-    return exe
 
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
     out = tmp_path_factory.mktemp("export")
-    proc = subprocess.run([str(build_fixture()), str(out)], check=True, capture_output=True, text=True)
+    proc = subprocess.run([str(example_binary("pipeline", "export_fixture")), str(out)], check=True, capture_output=True, text=True)
     return out, json.loads(proc.stdout)
 
-
-def srgb_encode(linear):
-    """IEC 61966-2-1 transfer function on [0, 1] (input clamped)."""
-    c = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
-    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
 
 
 def bilinear(img, x, y):
@@ -94,7 +79,7 @@ def test_ply_reads_back_identically_with_plyfile(exported):
         np.testing.assert_array_equal(face[name], emission[:, c], err_msg=name)
     assert face["segment_id"].dtype == np.dtype("<i4")
     np.testing.assert_array_equal(face["segment_id"], np.array(ours["segment_id"]))
-    codes = np.round(srgb_encode(albedo) * 255.0)
+    codes = np.round(linear_to_srgb(albedo) * 255.0)
     for c, name in enumerate(("red", "green", "blue")):
         assert face[name].dtype == np.dtype("u1")
         np.testing.assert_array_equal(face[name], codes[:, c], err_msg=name)
@@ -128,7 +113,7 @@ def test_open3d_reads_textured_obj_and_atlas_gives_each_albedo(exported):
         # so in its array the row grows with v.
         x, y = u * w, v * h
         sample = bilinear(texture, x, y)[:3] / 255.0
-        err = np.abs(sample - srgb_encode(albedo[i])).max()
+        err = np.abs(sample - linear_to_srgb(albedo[i])).max()
         worst = max(worst, err)
         assert err <= 1.0 / 255.0, f"triangle {i}: texture {sample} vs albedo {albedo[i]}"
         # The EXR is the file as written (first row = v = 1).
@@ -197,7 +182,7 @@ def test_trimesh_loads_glb_and_texture_gives_each_albedo(exported):
             u, v = uv[face].mean(axis=0)
             # trimesh stores UVs with v up (it flips glTF's v-down on load).
             sample = bilinear(texture, u * w, (1.0 - v) * h) / 255.0
-            assert np.abs(sample - srgb_encode(albedo[i])).max() <= 1.0 / 255.0, f"triangle {i}"
+            assert np.abs(sample - linear_to_srgb(albedo[i])).max() <= 1.0 / 255.0, f"triangle {i}"
     assert seen == set(range(ours["faces"]))
 
     emission = np.array(ours["emission"], np.float64)

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from plyfile import PlyData, PlyElement
 
-from conftest import ROOT, TARGET
+from support import example_binary
 
 SIZE = 64
 SPP_OURS = 256
@@ -114,8 +114,7 @@ def render_ours(tmp_path, seed, smooth):
     scene_json = tmp_path / "scene.json"
     scene_json.write_text(json.dumps(desc))
     out = tmp_path / f"ours_{seed}.exr"
-    subprocess.run(["cargo", "build", "--quiet", "-p", "tracer", "--example", "render_scene"], cwd=ROOT, check=True)
-    exe = TARGET / "debug" / "examples" / "render_scene"
+    exe = example_binary("tracer", "render_scene")
     subprocess.run([str(exe), str(scene_json), str(out)], check=True)
     import mitsuba as mi
 

@@ -19,11 +19,10 @@ from html.parser import HTMLParser
 
 import cv2
 import numpy as np
-import OpenEXR
 import pytest
 from plyfile import PlyData
 
-from conftest import ROOT, pipeline_binary
+from support import ROOT, pipeline_binary, read_exr_rgb
 
 DEMO = ROOT / "data-fixtures" / "demo"
 
@@ -64,13 +63,6 @@ def run_dir(tmp_path_factory):
     assert res.returncode == 0, res.stderr
     return d / "out"
 
-
-def read_exr_rgb(path):
-    with OpenEXR.File(str(path)) as f:
-        ch = f.channels()
-        if "RGB" in ch:
-            return np.asarray(ch["RGB"].pixels, dtype=np.float64)
-        return np.stack([np.asarray(ch[c].pixels, dtype=np.float64) for c in "RGB"], axis=-1)
 
 
 def test_ingested_mesh_matches_the_scan_ply(run_dir):

@@ -7,9 +7,7 @@
    face's ids on its triangles.
 """
 
-import functools
 import json
-import os
 import subprocess
 from pathlib import Path
 
@@ -18,20 +16,11 @@ import open3d as o3d
 import pytest
 from plyfile import PlyData, PlyElement
 
-ROOT = Path(__file__).resolve().parents[2]
-TARGET = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
-
-
-@functools.cache
-def build_example(name):
-    subprocess.run(["cargo", "build", "-p", "ingest", "--example", name], cwd=ROOT, check=True)
-    exe = TARGET / "debug" / "examples" / name
-    assert exe.exists(), exe
-    return exe
+from support import example_binary
 
 
 def run_json(name, *args):
-    proc = subprocess.run([str(build_example(name)), *map(str, args)], check=True, capture_output=True, text=True)
+    proc = subprocess.run([str(example_binary("ingest", name)), *map(str, args)], check=True, capture_output=True, text=True)
     return json.loads(proc.stdout)
 
 

@@ -6,45 +6,28 @@ reference linearises with its own numpy sRGB formula and runs cv2.undistort on t
 camera matrix cv2 itself computes (alpha = 0). The comparison is on the pixels our mask marks valid.
 """
 
-import functools
 import json
-import os
 import re
 import subprocess
 from pathlib import Path
 
 import cv2
 import numpy as np
-import OpenEXR
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT.parent / "shared" / "data"
-TARGET = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+from support import SHARED_DATA, example_binary, read_exr_channels, srgb_to_linear
 
-
-@functools.cache
-def build_example(name):
-    subprocess.run(["cargo", "build", "-p", "ingest", "--example", name], cwd=ROOT, check=True)
-    exe = TARGET / "debug" / "examples" / name
-    assert exe.exists(), exe
-    return exe
+DATA = SHARED_DATA
 
 
 def read_exr(path):
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        ch = f.channels()
-        rgb = np.stack([ch[c].pixels for c in "RGB"], axis=-1).astype(np.float64)
-        mask = ch["mask"].pixels > 0.5
-    return rgb, mask
+    ch = read_exr_channels(path)
+    return np.stack([ch[c] for c in "RGB"], axis=-1), ch["mask"] > 0.5
 
-
-def srgb_to_linear(v):
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
 
 
 def our_undistort(tmp_path, png, k, d):
-    exe = build_example("undistort")
+    exe = example_binary("ingest", "undistort")
     out = tmp_path / "ours.exr"
     args = [str(exe), str(png), str(out), *(repr(float(x)) for x in (k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d))]
     proc = subprocess.run(args, check=True, capture_output=True, text=True)
