@@ -15,6 +15,7 @@ use crate::rng::{PathSampler, PixelKey, Stream};
 use crate::scene::Scene;
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// One pixel of one view (`view` indexes the `cameras` slice).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -32,6 +33,27 @@ pub struct TraceStats {
     pub rays: u64,
     /// The shadow (occlusion) rays among them.
     pub shadow_rays: u64,
+}
+
+/// Process-wide totals of every [`Renderer`] call (paths, rays, shadow rays), for benchmarks that time code
+/// which calls the tracer internally (pipeline's `bench`). One relaxed update per call, not per path.
+static TOTALS: [AtomicU64; 3] = [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)];
+
+fn add_to_totals(s: &TraceStats) {
+    TOTALS[0].fetch_add(s.paths, Ordering::Relaxed);
+    TOTALS[1].fetch_add(s.rays, Ordering::Relaxed);
+    TOTALS[2].fetch_add(s.shadow_rays, Ordering::Relaxed);
+}
+
+/// The work of every render and gradient call of this process so far; the difference of two readings is the
+/// work done in between (exact when nothing else traces concurrently).
+#[must_use]
+pub fn total_trace_stats() -> TraceStats {
+    TraceStats {
+        paths: TOTALS[0].load(Ordering::Relaxed),
+        rays: TOTALS[1].load(Ordering::Relaxed),
+        shadow_rays: TOTALS[2].load(Ordering::Relaxed),
+    }
 }
 
 /// Largest accepted `max_depth`: bounds the random-number dimension (8 per vertex) well inside u32 and the
@@ -95,6 +117,7 @@ impl<'a> Renderer<'a> {
             rays: per_pixel.iter().map(|p| p.1[0] + p.1[1]).sum(),
             shadow_rays: per_pixel.iter().map(|p| p.1[1]).sum(),
         };
+        add_to_totals(&stats);
         Ok((per_pixel.into_iter().map(|p| p.0).collect(), stats))
     }
 
@@ -144,6 +167,7 @@ impl<'a> Renderer<'a> {
             stats.shadow_rays += rays[1];
             stats.paths += paths;
         }
+        add_to_totals(&stats);
         Ok((grads, stats))
     }
 }

@@ -18,7 +18,7 @@
 //! (including surfaces that emit nothing now: that is how a hidden light is found) and
 //! β_k ⊙ f_nee,k·g_k·∂Le/∂e at every NEE connection.
 
-use crate::bsdf::{Material, MaterialGrad};
+use crate::bsdf::{BsdfSample, Material, MaterialGrad};
 use crate::lights::LightSampler;
 use crate::numerics::{Frame, offset_ray_origin, power_heuristic};
 use crate::params::{Grads, MaterialGradSum, Params, TracerSettings};
@@ -118,7 +118,40 @@ pub(crate) fn trace(
     }
 }
 
+/// A next-event connection whose shadow ray has not been traced yet, with its contribution if unoccluded.
+#[derive(Debug, Clone, Copy)]
+struct PendingShadow {
+    from: Vec3,
+    /// Unnormalised: `to − from`, traced for t in [0, 1 − SHADOW_EPSILON].
+    dir: Vec3,
+    nee: NeeRecord,
+}
+
+/// Traces a pending shadow ray of vertex `v` (throughput `beta`); when it is unoccluded, adds the
+/// connection's contribution to `l` and records it in `v`.
+#[inline]
+fn finish_shadow(
+    scene: &Scene,
+    shadow: Option<PendingShadow>,
+    beta: Vec3,
+    l: &mut Vec3,
+    v: &mut Vertex,
+    rays: &mut [u64; 2],
+) {
+    let Some(s) = shadow else { return };
+    rays[1] += 1;
+    if !scene.occluded(s.from, s.dir, 1.0 - SHADOW_EPSILON) {
+        *l += beta * s.nee.f * s.nee.le * s.nee.g;
+        v.nee = Some(s.nee);
+    }
+}
+
 /// The path loop of [`trace`]; `GRAD` = gradient mode.
+///
+/// Order of the Embree queries: a vertex's shadow ray is traced after the closest-hit query of the next ray
+/// (both are independent of each other), with the next hit's triangle record prefetched in between, so that
+/// the record (one cache line per triangle, usually a miss) arrives while Embree traces the shadow ray.
+/// Radiance is accumulated in the same order as without the reordering.
 fn trace_mode<const GRAD: bool>(
     ctx: &Context<'_>,
     org: Vec3,
@@ -131,17 +164,15 @@ fn trace_mode<const GRAD: bool>(
     let profile = settings.emission_profile;
     let mut l = Vec3::ZERO;
     let mut beta = Vec3::ONE;
-    let mut o = org;
     let mut d = dir;
     // Solid-angle pdf of the BSDF sample that produced the current ray; None for the camera ray (no MIS).
     let mut prev_bsdf_pdf: Option<f32> = None;
+    rays[0] += 1;
+    let mut next_hit = scene.embree().intersect(org, dir, 0.0, f32::INFINITY);
     for depth in 0..=settings.max_depth {
-        rays[0] += 1;
-        let Some(hit) = scene.embree().intersect(o, d, 0.0, f32::INFINITY) else { break };
+        let Some(hit) = next_hit else { break };
         let dim = DIM_FIRST_VERTEX + depth * DIMS_PER_VERTEX;
         let last = depth == settings.max_depth;
-        // The light sample does not depend on the hit point: drawing it before the hit's triangle record is
-        // read gives the processor independent work while that (usually cache-missing) load is in flight.
         let light = if last || lights.is_empty() {
             None
         } else {
@@ -184,11 +215,12 @@ fn trace_mode<const GRAD: bool>(
         let frame = Frame::from_normal(ns);
         let wo_l = frame.to_local(wo);
         let material: &Material = &params.materials[material_idx as usize];
-        // The lobe-selection probability depends only on wo: computed once for the NEE pdf and the sampling.
-        // (Below the shading horizon, wo_l.z ≤ 0, neither uses it.)
-        let p_spec = if wo_l.z > 0.0 { material.lobe_probability(wo_l) } else { 0.0 };
+        // The BSDF terms that depend only on wo (Fresnel at wo, lobe-selection probability), computed once for
+        // the next-event evaluation and the sampled continuation.
+        let bsdf = material.at(wo_l);
 
-        // Next-event estimation.
+        // Next-event estimation, up to its shadow ray (traced below).
+        let mut shadow = None;
         if let Some(ls) = light {
             let to_light = ls.p - sp.p;
             let dist2 = to_light.length_squared();
@@ -199,25 +231,22 @@ fn trace_mode<const GRAD: bool>(
             if le_factor > 0.0 && wi.dot(ng) > 0.0 && dist2 > 0.0 {
                 let wi_l = frame.to_local(wi);
                 let (f, d_f, pdf_b) = if GRAD {
-                    material.eval_grad_pdf_with(wo_l, wi_l, p_spec)
+                    bsdf.eval_grad_pdf(wi_l)
                 } else {
-                    let (f, pdf_b) = material.eval_pdf_with(wo_l, wi_l, p_spec);
+                    let (f, pdf_b) = bsdf.eval_pdf(wi_l);
                     (f, MaterialGrad::default(), pdf_b)
                 };
                 // In value mode a zero BSDF value contributes nothing; gradient mode still needs ∂f.
                 if GRAD || f != Vec3::ZERO {
                     let from = offset_ray_origin(sp.p, ng, wi);
                     let to = offset_ray_origin(ls.p, ng_l, -wi);
-                    rays[1] += 1;
-                    if !scene.occluded(from, to - from, 1.0 - SHADOW_EPSILON) {
-                        let pdf_l = ls.pdf_area * dist2 / cos_l;
-                        let mis = power_heuristic(pdf_l, pdf_b);
-                        let g = wi_l.z.abs() / pdf_l * mis;
-                        let light_emitter = scene.emitter_of(ls.tri);
-                        let le = params.emission[light_emitter as usize] * le_factor;
-                        l += beta * f * le * g;
-                        v.nee = Some(NeeRecord { d_f, f, le, g, emitter: light_emitter, le_factor });
-                    }
+                    let pdf_l = ls.pdf_area * dist2 / cos_l;
+                    let mis = power_heuristic(pdf_l, pdf_b);
+                    let g = wi_l.z.abs() / pdf_l * mis;
+                    let light_emitter = scene.emitter_of(ls.tri);
+                    let le = params.emission[light_emitter as usize] * le_factor;
+                    let nee = NeeRecord { d_f, f, le, g, emitter: light_emitter, le_factor };
+                    shadow = Some(PendingShadow { from, dir: to - from, nee });
                 }
             }
         }
@@ -226,16 +255,18 @@ fn trace_mode<const GRAD: bool>(
         let u_dir = Vec2::new(rng.get(dim + 5), rng.get(dim + 6));
         let u_lobe = rng.get(dim + 4);
         let sampled = if GRAD {
-            material.sample_grad_with(wo_l, u_dir, u_lobe, p_spec).map(|(wi_l, f, d_f, pdf)| (wi_l, pdf, f, d_f))
+            bsdf.sample_grad(u_dir, u_lobe)
         } else {
-            material.sample_with(wo_l, u_dir, u_lobe, p_spec).map(|s| (s.wi, s.pdf, s.f, MaterialGrad::default()))
+            bsdf.sample(u_dir, u_lobe).map(|s| (s, MaterialGrad::default()))
         };
-        let Some((wi_l, pdf, f, d_f)) = sampled else {
+        let Some((BsdfSample { wi: wi_l, f, pdf }, d_f)) = sampled else {
+            finish_shadow(scene, shadow, beta, &mut l, &mut v, rays);
             record_if::<GRAD>(record, v);
             break;
         };
         let wi = frame.to_world(wi_l);
         if pdf.is_nan() || pdf <= 0.0 || wi.dot(ng) <= 0.0 {
+            finish_shadow(scene, shadow, beta, &mut l, &mut v, rays);
             record_if::<GRAD>(record, v);
             break;
         }
@@ -245,16 +276,23 @@ fn trace_mode<const GRAD: bool>(
             let floor = if GRAD { RR_MIN_SURVIVAL_GRADIENT } else { 0.0 };
             let q = beta_next.max_element().clamp(floor, RR_MAX_SURVIVAL);
             if rng.get(dim + 7) >= q {
+                finish_shadow(scene, shadow, beta, &mut l, &mut v, rays);
                 record_if::<GRAD>(record, v);
                 break;
             }
             weight /= q;
         }
+        // The next ray's closest hit first, then this vertex's shadow ray while the hit's record loads.
+        rays[0] += 1;
+        next_hit = scene.embree().intersect(offset_ray_origin(sp.p, ng, wi), wi, 0.0, f32::INFINITY);
+        if let Some(h) = &next_hit {
+            scene.prefetch_triangle(h.prim_id);
+        }
+        finish_shadow(scene, shadow, beta, &mut l, &mut v, rays);
         v.scatter = Some(ScatterRecord { d_f, f, weight });
         record_if::<GRAD>(record, v);
         beta *= f * weight;
         prev_bsdf_pdf = Some(pdf);
-        o = offset_ray_origin(sp.p, ng, wi);
         d = wi;
     }
     l

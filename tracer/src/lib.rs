@@ -46,8 +46,8 @@ pub mod params;
 pub mod rng;
 pub mod scene;
 
-pub use batch::{PixelRef, Renderer, TraceStats, gradient_pixels, render_image, render_pixels};
-pub use bsdf::{Material, MaterialGrad};
+pub use batch::{PixelRef, Renderer, TraceStats, gradient_pixels, render_image, render_pixels, total_trace_stats};
+pub use bsdf::{Material, MaterialAt, MaterialGrad};
 pub use camera::Camera;
 pub use error::TracerError;
 pub use lights::LightSampler;

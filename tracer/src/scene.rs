@@ -259,6 +259,15 @@ impl Scene {
         self.surface_and_slots(tri, u, v).0
     }
 
+    /// Starts loading the record of triangle `tri` (the line `surface_and_slots` reads) into the cache, without
+    /// waiting for it.
+    #[inline]
+    pub fn prefetch_triangle(&self, tri: u32) {
+        if let Some(d) = self.tri_data.get(tri as usize) {
+            crate::embree::prefetch(d);
+        }
+    }
+
     /// [`Scene::surface`] together with the triangle's material and emitter slots, all read from the one
     /// cache line of the triangle's record (the integrator's per-hit lookup).
     #[inline]

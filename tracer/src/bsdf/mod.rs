@@ -116,13 +116,7 @@ impl Material {
     #[must_use]
     pub fn eval_grad(&self, wo: Vec3, wi: Vec3) -> (Vec3, MaterialGrad) {
         let (f, g) = eval_generic::<f32, true>(&self.params(), wo.to_array(), wi.to_array());
-        let grad = MaterialGrad {
-            d_base_color: Vec3::from_array(g.d_base),
-            d_roughness: Vec3::from_array(g.d_roughness),
-            d_metallic: Vec3::from_array(g.d_metallic),
-            d_specular: Vec3::from_array(g.d_specular),
-        };
-        (Vec3::from_array(f), grad)
+        (Vec3::from_array(f), material_grad(&g))
     }
 
     /// Solid-angle pdf of `sample` producing `wi`: P_s·p_s(wi) + (1 − P_s)·cosθi/π.
@@ -131,33 +125,7 @@ impl Material {
         if !(wo.z > 0.0 && wi.z > 0.0) {
             return 0.0;
         }
-        self.pdf_with(wo, wi, self.lobe_probability(wo))
-    }
-
-    /// P_s for this wo as `sample`/`pdf` use it: 0 for a pure Lambert material (which never evaluates the
-    /// Fresnel terms), else [`Material::specular_probability`]. It depends only on wo, so a caller that
-    /// needs `pdf` and `sample` at one vertex computes it once and passes it to the `_with` variants.
-    #[inline]
-    #[must_use]
-    pub fn lobe_probability(&self, wo: Vec3) -> f32 {
-        if self.is_lambert() { 0.0 } else { self.specular_probability(wo) }
-    }
-
-    /// [`Material::pdf`] given `p_spec = self.lobe_probability(wo)` (bit-identical result).
-    #[inline]
-    #[must_use]
-    pub fn pdf_with(&self, wo: Vec3, wi: Vec3, p_spec: f32) -> f32 {
-        if !(wo.z > 0.0 && wi.z > 0.0) {
-            return 0.0;
-        }
-        debug_assert_eq!(p_spec.to_bits(), self.lobe_probability(wo).to_bits(), "p_spec must be lobe_probability(wo)");
-        let p_diffuse = lambert::pdf_cosine(wi);
-        if p_spec > 0.0 {
-            let (alpha, _) = ggx::alpha(self.roughness);
-            p_spec * ggx::pdf_reflect(alpha, wo, wi) + (1.0 - p_spec) * p_diffuse
-        } else {
-            p_diffuse
-        }
+        self.at(wo).pdf(wi)
     }
 
     /// Samples wi given two uniform numbers for the direction and one for the lobe choice. None when the
@@ -167,113 +135,23 @@ impl Material {
         if wo.z.is_nan() || wo.z <= 0.0 {
             return None;
         }
-        self.sample_with(wo, u, u_lobe, self.lobe_probability(wo))
+        self.at(wo).sample(u, u_lobe)
     }
 
-    /// `(eval(wo, wi), pdf_with(wo, wi, p_spec))` bit for bit, sharing the GGX half-vector, D and S(wo)
-    /// between the two (the integrator's next-event and BSDF-sampled evaluations).
+    /// The material seen from a fixed `wo`: the terms that depend only on wo (per-channel F0 and F(cosθo),
+    /// the lobe-selection probability) are computed once and shared by every evaluation, pdf and sample at
+    /// that vertex. Every result is bit-identical to the corresponding [`Material`] method.
     #[inline]
     #[must_use]
-    pub fn eval_pdf_with(&self, wo: Vec3, wi: Vec3, p_spec: f32) -> (Vec3, f32) {
-        if !(wo.z > 0.0 && wi.z > 0.0) {
-            return (Vec3::ZERO, 0.0);
-        }
-        debug_assert_eq!(p_spec.to_bits(), self.lobe_probability(wo).to_bits(), "p_spec must be lobe_probability(wo)");
-        let p_diffuse = lambert::pdf_cosine(wi);
-        if self.is_lambert() {
-            // As in `eval` and `pdf_with` (p_spec = 0 for Lambert).
-            return (self.base_color * std::f32::consts::FRAC_1_PI, p_diffuse);
-        }
-        let (f, _, terms) = eval_terms::<f32, false>(&self.params(), wo.to_array(), wi.to_array());
-        let pdf = if p_spec > 0.0 {
-            let p_s = match terms {
-                Some(t) => ggx::pdf_reflect_from(t.d, wo.z, t.s_o),
-                None => ggx::pdf_reflect(ggx::alpha(self.roughness).0, wo, wi),
-            };
-            p_spec * p_s + (1.0 - p_spec) * p_diffuse
-        } else {
-            p_diffuse
+    pub fn at(&self, wo: Vec3) -> MaterialAt<'_> {
+        let params = self.params();
+        // Pure Lambert skips the Fresnel terms (F ≡ 0); they are computed on demand for derivatives.
+        let outgoing = (wo.z > 0.0 && !self.is_lambert()).then(|| outgoing_terms(&params, wo.z));
+        let p_spec = match &outgoing {
+            Some(o) => specular_probability_from(&params, o),
+            None => 0.0,
         };
-        (Vec3::from_array(f), pdf)
-    }
-
-    /// `(eval_grad(wo, wi), pdf_with(wo, wi, p_spec))` bit for bit, sharing the GGX terms like
-    /// [`Material::eval_pdf_with`].
-    #[inline]
-    #[must_use]
-    pub fn eval_grad_pdf_with(&self, wo: Vec3, wi: Vec3, p_spec: f32) -> (Vec3, MaterialGrad, f32) {
-        let (f, g, terms) = eval_terms::<f32, true>(&self.params(), wo.to_array(), wi.to_array());
-        let grad = MaterialGrad {
-            d_base_color: Vec3::from_array(g.d_base),
-            d_roughness: Vec3::from_array(g.d_roughness),
-            d_metallic: Vec3::from_array(g.d_metallic),
-            d_specular: Vec3::from_array(g.d_specular),
-        };
-        if !(wo.z > 0.0 && wi.z > 0.0) {
-            return (Vec3::from_array(f), grad, 0.0);
-        }
-        debug_assert_eq!(p_spec.to_bits(), self.lobe_probability(wo).to_bits(), "p_spec must be lobe_probability(wo)");
-        let p_diffuse = lambert::pdf_cosine(wi);
-        let pdf = if p_spec > 0.0 {
-            let p_s = match terms {
-                Some(t) => ggx::pdf_reflect_from(t.d, wo.z, t.s_o),
-                None => ggx::pdf_reflect(ggx::alpha(self.roughness).0, wo, wi),
-            };
-            p_spec * p_s + (1.0 - p_spec) * p_diffuse
-        } else {
-            p_diffuse
-        };
-        (Vec3::from_array(f), grad, pdf)
-    }
-
-    /// [`Material::sample_with`] with f evaluated by `eval_grad`: (wi, f, ∂f, pdf).
-    #[inline]
-    #[must_use]
-    pub fn sample_grad_with(
-        &self,
-        wo: Vec3,
-        u: Vec2,
-        u_lobe: f32,
-        p_spec: f32,
-    ) -> Option<(Vec3, Vec3, MaterialGrad, f32)> {
-        let wi = self.sample_wi(wo, u, u_lobe, p_spec)?;
-        let (f, grad, pdf) = self.eval_grad_pdf_with(wo, wi, p_spec);
-        (pdf > 0.0 && pdf.is_finite()).then_some((wi, f, grad, pdf))
-    }
-
-    /// [`Material::sample`] given `p_spec = self.lobe_probability(wo)` (bit-identical result).
-    #[inline]
-    #[must_use]
-    pub fn sample_with(&self, wo: Vec3, u: Vec2, u_lobe: f32, p_spec: f32) -> Option<BsdfSample> {
-        let wi = self.sample_wi(wo, u, u_lobe, p_spec)?;
-        let (f, pdf) = self.eval_pdf_with(wo, wi, p_spec);
-        (pdf > 0.0 && pdf.is_finite()).then_some(BsdfSample { wi, f, pdf })
-    }
-
-    /// The direction and pdf of [`Material::sample_with`] without evaluating f (for callers that evaluate
-    /// f together with its derivatives through `eval_grad`).
-    #[inline]
-    #[must_use]
-    pub fn sample_direction_with(&self, wo: Vec3, u: Vec2, u_lobe: f32, p_spec: f32) -> Option<(Vec3, f32)> {
-        let wi = self.sample_wi(wo, u, u_lobe, p_spec)?;
-        let pdf = self.pdf_with(wo, wi, p_spec);
-        (pdf > 0.0 && pdf.is_finite()).then_some((wi, pdf))
-    }
-
-    /// The sampled direction of [`Material::sample_with`] (before its pdf is checked).
-    #[inline]
-    fn sample_wi(&self, wo: Vec3, u: Vec2, u_lobe: f32, p_spec: f32) -> Option<Vec3> {
-        if wo.z.is_nan() || wo.z <= 0.0 {
-            return None;
-        }
-        debug_assert_eq!(p_spec.to_bits(), self.lobe_probability(wo).to_bits(), "p_spec must be lobe_probability(wo)");
-        if !self.is_lambert() && u_lobe < p_spec {
-            let (alpha, _) = ggx::alpha(self.roughness);
-            let h = ggx::sample_vndf(alpha, wo, u)?;
-            Some((2.0 * wo.dot(h) * h - wo).normalize_or_zero())
-        } else {
-            Some(lambert::sample_cosine(u))
-        }
+        MaterialAt { material: self, params, wo, outgoing, p_spec }
     }
 
     /// True when the material is pure Lambert (metallic = specular = 0): the integrator's fast path.
@@ -287,25 +165,169 @@ impl Material {
     /// specular albedo estimate over the sum of both lobes' estimates (see the module doc).
     #[must_use]
     pub fn specular_probability(&self, wo: Vec3) -> f32 {
-        let w = fresnel::schlick_weight(wo.z);
-        let mut spec = Vec3::ZERO;
-        let mut diffuse = Vec3::ZERO;
-        for k in 0..3 {
-            let (f0, _) = fresnel::f0(self.base_color[k], self.metallic, self.specular);
-            let fr = fresnel::schlick(f0, w);
-            spec[k] = fr.f.max(0.0);
-            diffuse[k] = ((1.0 - self.metallic) * self.base_color[k] * fr.one_minus_f).max(0.0);
-        }
-        let (ws, wd) = (spec.dot(LUMINANCE), diffuse.dot(LUMINANCE));
-        if ws > 0.0 { ws / (ws + wd) } else { 0.0 }
+        let params = self.params();
+        specular_probability_from(&params, &outgoing_terms(&params, wo.z))
     }
 
+    #[inline]
     fn params(&self) -> Params<f32> {
         Params {
             base: self.base_color.to_array(),
             roughness: self.roughness,
             metallic: self.metallic,
             specular: self.specular,
+        }
+    }
+}
+
+/// P_s from the outgoing terms (see [`Material::specular_probability`]).
+#[inline]
+fn specular_probability_from(p: &Params<f32>, o: &OutgoingTerms<f32>) -> f32 {
+    let mut spec = Vec3::ZERO;
+    let mut diffuse = Vec3::ZERO;
+    for k in 0..3 {
+        let fr = o.fr_o[k];
+        spec[k] = fr.f.max(0.0);
+        diffuse[k] = ((1.0 - p.metallic) * p.base[k] * fr.one_minus_f).max(0.0);
+    }
+    let (ws, wd) = (spec.dot(LUMINANCE), diffuse.dot(LUMINANCE));
+    if ws > 0.0 { ws / (ws + wd) } else { 0.0 }
+}
+
+#[inline]
+fn material_grad(g: &Grad<f32>) -> MaterialGrad {
+    MaterialGrad {
+        d_base_color: Vec3::from_array(g.d_base),
+        d_roughness: Vec3::from_array(g.d_roughness),
+        d_metallic: Vec3::from_array(g.d_metallic),
+        d_specular: Vec3::from_array(g.d_specular),
+    }
+}
+
+/// A [`Material`] at a fixed outgoing direction wo (see [`Material::at`]).
+#[derive(Debug, Clone, Copy)]
+pub struct MaterialAt<'a> {
+    material: &'a Material,
+    params: Params<f32>,
+    wo: Vec3,
+    /// Present when wo.z > 0 and the material is not pure Lambert.
+    outgoing: Option<OutgoingTerms<f32>>,
+    p_spec: f32,
+}
+
+impl MaterialAt<'_> {
+    /// P_s, the probability of sampling the specular lobe (0 for pure Lambert or wo below the surface).
+    #[inline]
+    #[must_use]
+    pub fn specular_probability(&self) -> f32 {
+        self.p_spec
+    }
+
+    /// [`Material::eval`].
+    #[inline]
+    #[must_use]
+    pub fn eval(&self, wi: Vec3) -> Vec3 {
+        self.eval_pdf(wi).0
+    }
+
+    /// [`Material::pdf`].
+    #[inline]
+    #[must_use]
+    pub fn pdf(&self, wi: Vec3) -> f32 {
+        let wo = self.wo;
+        if !(wo.z > 0.0 && wi.z > 0.0) {
+            return 0.0;
+        }
+        let p_diffuse = lambert::pdf_cosine(wi);
+        if self.p_spec > 0.0 {
+            let (alpha, _) = ggx::alpha(self.material.roughness);
+            self.p_spec * ggx::pdf_reflect(alpha, wo, wi) + (1.0 - self.p_spec) * p_diffuse
+        } else {
+            p_diffuse
+        }
+    }
+
+    /// ([`Material::eval`], [`Material::pdf`]) sharing the GGX half-vector, D and S(wo) between the two.
+    #[inline]
+    #[must_use]
+    pub fn eval_pdf(&self, wi: Vec3) -> (Vec3, f32) {
+        let wo = self.wo;
+        if !(wo.z > 0.0 && wi.z > 0.0) {
+            return (Vec3::ZERO, 0.0);
+        }
+        let p_diffuse = lambert::pdf_cosine(wi);
+        let Some(o) = &self.outgoing else {
+            // Pure Lambert: as in `Material::eval`, and P_s = 0.
+            return (self.material.base_color * std::f32::consts::FRAC_1_PI, p_diffuse);
+        };
+        let (f, _, terms) = eval_terms::<f32, false>(&self.params, o, wo.to_array(), wi.to_array());
+        (Vec3::from_array(f), self.mixture_pdf(terms, wi, p_diffuse))
+    }
+
+    /// ([`Material::eval_grad`], [`Material::pdf`]) sharing the GGX terms like [`MaterialAt::eval_pdf`].
+    #[inline]
+    #[must_use]
+    pub fn eval_grad_pdf(&self, wi: Vec3) -> (Vec3, MaterialGrad, f32) {
+        let wo = self.wo;
+        if !(wo.z > 0.0 && wi.z > 0.0) {
+            // eval_generic's zeros below the surface.
+            return (Vec3::ZERO, MaterialGrad::default(), 0.0);
+        }
+        let o = match &self.outgoing {
+            Some(o) => *o,
+            None => outgoing_terms(&self.params, wo.z),
+        };
+        let (f, g, terms) = eval_terms::<f32, true>(&self.params, &o, wo.to_array(), wi.to_array());
+        (Vec3::from_array(f), material_grad(&g), self.mixture_pdf(terms, wi, lambert::pdf_cosine(wi)))
+    }
+
+    /// P_s·p_s + (1 − P_s)·p_d for wo, wi above the surface, p_s from the terms of an evaluation when it
+    /// computed them (bit-identical to `ggx::pdf_reflect`).
+    #[inline]
+    fn mixture_pdf(&self, terms: Option<SpecularTerms<f32>>, wi: Vec3, p_diffuse: f32) -> f32 {
+        if self.p_spec > 0.0 {
+            let p_s = match terms {
+                Some(t) => ggx::pdf_reflect_from(t.d, self.wo.z, t.s_o),
+                None => ggx::pdf_reflect(ggx::alpha(self.material.roughness).0, self.wo, wi),
+            };
+            self.p_spec * p_s + (1.0 - self.p_spec) * p_diffuse
+        } else {
+            p_diffuse
+        }
+    }
+
+    /// [`Material::sample`].
+    #[inline]
+    #[must_use]
+    pub fn sample(&self, u: Vec2, u_lobe: f32) -> Option<BsdfSample> {
+        let wi = self.sample_wi(u, u_lobe)?;
+        let (f, pdf) = self.eval_pdf(wi);
+        (pdf > 0.0 && pdf.is_finite()).then_some(BsdfSample { wi, f, pdf })
+    }
+
+    /// [`Material::sample`] with f evaluated together with its derivatives: (sample, ∂f).
+    #[inline]
+    #[must_use]
+    pub fn sample_grad(&self, u: Vec2, u_lobe: f32) -> Option<(BsdfSample, MaterialGrad)> {
+        let wi = self.sample_wi(u, u_lobe)?;
+        let (f, grad, pdf) = self.eval_grad_pdf(wi);
+        (pdf > 0.0 && pdf.is_finite()).then_some((BsdfSample { wi, f, pdf }, grad))
+    }
+
+    /// The sampled direction (before its pdf is checked): VNDF reflection with probability P_s, else
+    /// cosine-weighted.
+    #[inline]
+    fn sample_wi(&self, u: Vec2, u_lobe: f32) -> Option<Vec3> {
+        let wo = self.wo;
+        if wo.z.is_nan() || wo.z <= 0.0 {
+            return None;
+        }
+        if !self.material.is_lambert() && u_lobe < self.p_spec {
+            let (alpha, _) = ggx::alpha(self.material.roughness);
+            let h = ggx::sample_vndf(alpha, wo, u)?;
+            Some((2.0 * wo.dot(h) * h - wo).normalize_or_zero())
+        } else {
+            Some(lambert::sample_cosine(u))
         }
     }
 }
@@ -342,8 +364,25 @@ pub(crate) struct Grad<T> {
 /// ```
 #[must_use]
 pub(crate) fn eval_generic<T: Real, const GRAD: bool>(p: &Params<T>, wo: [T; 3], wi: [T; 3]) -> ([T; 3], Grad<T>) {
-    let (f, g, _) = eval_terms::<T, GRAD>(p, wo, wi);
+    let (f, g, _) = eval_terms::<T, GRAD>(p, &outgoing_terms(p, wo[2]), wo, wi);
     (f, g)
+}
+
+/// The per-channel terms of f_r that depend only on the material and cosθo: F0 with its partials
+/// (∂/∂base, ∂/∂metallic, ∂/∂specular) and Schlick's F(cosθo).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct OutgoingTerms<T> {
+    pub f0: [T; 3],
+    pub df0: [[T; 3]; 3],
+    pub fr_o: [fresnel::Fresnel<T>; 3],
+}
+
+#[inline]
+#[must_use]
+pub(crate) fn outgoing_terms<T: Real>(p: &Params<T>, cos_o: T) -> OutgoingTerms<T> {
+    let w_o = fresnel::schlick_weight(cos_o);
+    let f0 = [0, 1, 2].map(|k| fresnel::f0(p.base[k], p.metallic, p.specular));
+    OutgoingTerms { f0: f0.map(|x| x.0), df0: f0.map(|x| x.1), fr_o: f0.map(|x| fresnel::schlick(x.0, w_o)) }
 }
 
 /// The GGX terms of one evaluation that the sampling pdf shares: D(h) and S(wo) (see ggx.rs).
@@ -353,12 +392,13 @@ pub(crate) struct SpecularTerms<T> {
     pub s_o: T,
 }
 
-/// [`eval_generic`], also returning the D and S(wo) it computed (None where the specular lobe is off:
-/// either direction below the surface or below [`SPECULAR_MIN_COS`]).
+/// [`eval_generic`] given the [`outgoing_terms`] of (p, wo), also returning the D and S(wo) it computed
+/// (None where the specular lobe is off: either direction below the surface or below [`SPECULAR_MIN_COS`]).
 #[inline]
 #[must_use]
 pub(crate) fn eval_terms<T: Real, const GRAD: bool>(
     p: &Params<T>,
+    o: &OutgoingTerms<T>,
     wo: [T; 3],
     wi: [T; 3],
 ) -> ([T; 3], Grad<T>, Option<SpecularTerms<T>>) {
@@ -371,7 +411,7 @@ pub(crate) fn eval_terms<T: Real, const GRAD: bool>(
         return (f, g, None);
     }
     let inv_pi = T::lit(std::f64::consts::FRAC_1_PI);
-    let (w_o, w_i) = (fresnel::schlick_weight(cos_o), fresnel::schlick_weight(cos_i));
+    let w_i = fresnel::schlick_weight(cos_i);
 
     // Specular geometry, shared by the channels: DV = D·V, its a-derivative, the Schlick weight at wo·h.
     let min_cos = T::lit(f64::from(SPECULAR_MIN_COS));
@@ -390,8 +430,8 @@ pub(crate) fn eval_terms<T: Real, const GRAD: bool>(
 
     for k in 0..3 {
         let c = p.base[k];
-        let (f0, df0) = fresnel::f0(c, p.metallic, p.specular);
-        let (fr_o, fr_i, fr_h) = (fresnel::schlick(f0, w_o), fresnel::schlick(f0, w_i), fresnel::schlick(f0, w_h));
+        let (f0, df0, fr_o) = (o.f0[k], o.df0[k], o.fr_o[k]);
+        let (fr_i, fr_h) = (fresnel::schlick(f0, w_i), fresnel::schlick(f0, w_h));
         let kd = (one - p.metallic) * c * inv_pi;
         let (e_o, e_i) = (fr_o.one_minus_f, fr_i.one_minus_f);
         let f_h = fr_h.f;
