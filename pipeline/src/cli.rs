@@ -1,4 +1,4 @@
-//! Command line: `pipeline run`, `pipeline render`, `pipeline synth`. Parsing only; the work is in the
+//! Command line: `pipeline run`, `pipeline render`, `pipeline synth`, `pipeline bench`. Parsing only; the work is in the
 //! library modules. Exit codes: 0 success, 1 a failure while running, 2 bad usage or bad config.
 
 use std::path::PathBuf;
@@ -24,6 +24,96 @@ pub enum Command {
     Render(RenderArgs),
     /// Generates a synthetic Matterport-layout scan from a scene description.
     Synth(SynthArgs),
+    /// Measures speed against accuracy of the per-object fit (see `pipeline::bench`).
+    Bench(BenchArgs),
+    /// Writes RUN_DIR/export/{mesh.ply, textured.obj + .mtl + albedo atlas, scene.glb} from the run's
+    /// per-triangle result (or its per-object result when the triangle stage wrote none).
+    Export(ExportArgs),
+}
+
+/// `pipeline export`.
+#[derive(Debug, clap::Args)]
+pub struct ExportArgs {
+    /// A run directory (`output.path` of a run whose `object` stage finished).
+    pub run_dir: PathBuf,
+}
+
+/// `pipeline bench`.
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    #[command(subcommand)]
+    pub what: BenchCommand,
+}
+
+/// The benchmarks.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Sweeps the fit's settings on synthetic scenes: CSV, SVG (error vs time, Pareto front), markdown.
+    Tradeoff(BenchTradeoffArgs),
+    /// Adam-phase ablations: value paths (paper Fig. 9) and value/gradient budget split (Fig. 10).
+    Ablation(BenchAblationArgs),
+    /// Mitsuba 3 baseline against our fit on the same scene: time to the same albedo error.
+    Mitsuba(BenchMitsubaArgs),
+}
+
+/// `pipeline bench tradeoff`.
+#[derive(Debug, clap::Args)]
+pub struct BenchTradeoffArgs {
+    /// Scenes (`data-fixtures/scenes/<name>.toml`), comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "demo,glossy")]
+    pub scenes: Vec<String>,
+    /// Output directory.
+    #[arg(long, default_value = "docs/tradeoff")]
+    pub out: PathBuf,
+    /// A tiny sweep (smoke test): two points per scene at minimal settings.
+    #[arg(long)]
+    pub quick: bool,
+    /// Do not run: rebuild the SVG and markdown from the CSV already in `--out`.
+    #[arg(long)]
+    pub replot: bool,
+    /// Workspace root holding `data-fixtures/` (default: the one this binary was built from).
+    #[arg(long)]
+    pub workspace: Option<PathBuf>,
+}
+
+/// `pipeline bench ablation`.
+#[derive(Debug, clap::Args)]
+pub struct BenchAblationArgs {
+    /// Scene (`data-fixtures/scenes/<name>.toml`).
+    #[arg(long, default_value = "demo")]
+    pub scene: String,
+    /// Output directory.
+    #[arg(long, default_value = "docs/tradeoff")]
+    pub out: PathBuf,
+    /// Tiny runs (smoke test).
+    #[arg(long)]
+    pub quick: bool,
+    /// Workspace root holding `data-fixtures/`.
+    #[arg(long)]
+    pub workspace: Option<PathBuf>,
+}
+
+/// `pipeline bench mitsuba`.
+#[derive(Debug, clap::Args)]
+pub struct BenchMitsubaArgs {
+    /// Scene with a committed scan (`data-fixtures/<name>/`).
+    #[arg(long, default_value = "demo")]
+    pub scene: String,
+    /// Output directory.
+    #[arg(long, default_value = "docs/tradeoff")]
+    pub out: PathBuf,
+    /// Wall-time budget of the Mitsuba solve, seconds.
+    #[arg(long, default_value_t = 300.0)]
+    pub budget_seconds: f64,
+    /// Python with Mitsuba 3 (default: `<workspace>/deps/venv/bin/python`).
+    #[arg(long)]
+    pub python: Option<PathBuf>,
+    /// Our side at the `--quick` tradeoff settings only (smoke test).
+    #[arg(long)]
+    pub quick: bool,
+    /// Workspace root holding `data-fixtures/` and `tests/validation/`.
+    #[arg(long)]
+    pub workspace: Option<PathBuf>,
 }
 
 /// `pipeline run`.

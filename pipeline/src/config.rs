@@ -39,6 +39,10 @@ pub enum ConfigError {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
+    /// Quality preset (`preview` | `balanced` | `final`, see [`crate::presets`]): fills the `[object]`,
+    /// `[tracer]` and `[images]` keys the config does not set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quality: Option<crate::presets::Quality>,
     pub scan: ScanConfig,
     #[serde(default)]
     pub output: OutputConfig,
@@ -195,10 +199,61 @@ impl Default for TracerConfig {
     }
 }
 
-/// `[triangle]`: the per-triangle stage (its own issue); no keys yet.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TriangleConfig {}
+/// `[triangle]`: the per-triangle stage (`crate::triangle`): per-triangle base colour starting from the
+/// per-object result, and adaptive subdivision rounds. Every default is documented in configs/README.md.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TriangleConfig {
+    /// Run the per-triangle fit; `false` makes the stage a no-op and the export uses the per-object result.
+    pub enabled: bool,
+    /// Subdivision rounds (fit → split → fit …); 0 = per-triangle fit on the scan's mesh only.
+    pub rounds: u32,
+    /// Closed-form (ratio) base-colour updates per fit.
+    pub fit_steps: u32,
+    /// Paths per pixel of the renders of every fit step and of the split test.
+    pub spp: u32,
+    /// Adam iterations per fit after the closed-form steps (batches of `object.batch_pixels` pixels,
+    /// `object.n_value`/`object.n_grad` paths, the object stage's loss); 0 = closed form only.
+    pub adam_iterations: u32,
+    /// Adam learning rate of those iterations.
+    pub adam_lr: f64,
+    /// Weight of the smoothness regulariser between neighbouring triangles of one object, in pixels of
+    /// evidence per shared edge (0 = none).
+    pub smoothness: f64,
+    /// A triangle is split when the F statistic of its pixel residuals grouped by the four would-be children
+    /// (between-children variance over within-children variance, i.e. residual structure over noise) exceeds
+    /// this.
+    pub split_threshold: f64,
+    /// … and when the split would change some child's albedo by more than this fraction (largest mean
+    /// residual of a would-be child over the triangle's mean radiance): systematic misfit that is not texture
+    /// (e.g. light bounced from a not yet refined neighbour) is well above the noise but small.
+    pub split_contrast: f64,
+    /// Smallest pixel footprint of a triangle a split may create: pixel centres in its parent's best view / 4.
+    pub min_pixels: u32,
+    /// Budget: the mesh never grows beyond this many triangles.
+    pub max_triangles: u32,
+    /// Seed of the stage's renders.
+    pub seed: u64,
+}
+
+impl Default for TriangleConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            rounds: 3,
+            fit_steps: 3,
+            spp: 32,
+            adam_iterations: 0,
+            adam_lr: 0.01,
+            smoothness: 0.1,
+            split_threshold: 10.0,
+            split_contrast: 0.1,
+            min_pixels: 4,
+            max_triangles: 200_000,
+            seed: 0,
+        }
+    }
+}
 
 /// `[export]`: materials.json, trajectories and report.html.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -244,6 +299,12 @@ pub fn parse(text: &str, path: &Path, overrides: &[String]) -> Result<Config, Co
     for arg in overrides {
         apply_override(&mut table, arg)?;
     }
+    // After the overrides, so that `--set quality=...` works and `--set` keys win over the preset.
+    crate::presets::apply(&mut table).map_err(|(key, message)| ConfigError::Key {
+        path: path.to_path_buf(),
+        key,
+        message,
+    })?;
     let de = toml::Value::Table(table);
     serde_path_to_error::deserialize(de).map_err(|e| {
         let parent = e.path().to_string();

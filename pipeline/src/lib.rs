@@ -6,6 +6,7 @@
 //! [`fit`] holds the per-object optimisation and [`synth`] the synthetic-scan generator.
 
 pub mod atomic_file;
+pub mod bench;
 pub mod cli;
 pub mod config;
 pub mod export;
@@ -13,9 +14,11 @@ pub mod fit;
 pub mod manifest;
 pub mod materials;
 pub mod plan;
+pub mod presets;
 pub mod render_cmd;
 pub mod report;
 pub mod runner;
 pub mod stages;
 pub mod subdivide;
 pub mod synth;
+pub mod triangle;

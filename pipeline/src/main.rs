@@ -46,6 +46,8 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Render(args) => pipeline::render_cmd::render(&args).map_err(Into::into),
         Command::Synth(args) => pipeline::synth::generate(&args.desc, &args.out_dir).map_err(Into::into),
+        Command::Export(args) => pipeline::stages::export::export_mesh(&args.run_dir).map(|_| ()).map_err(Into::into),
+        Command::Bench(args) => pipeline::bench::run_command(args.what).map_err(Into::into),
     }
 }
 

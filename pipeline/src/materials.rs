@@ -7,6 +7,8 @@
 //!  "objects": [{"id": 3, "label": "wall", "triangles": 12, "base_color": [0.7, 0.2, 0.2], "roughness": 0.5,
 //!               "metallic": 0.0, "specular": 0.0, "emission": [0, 0, 0], "model": "diffuse"}]}
 //! ```
+//! Written by the fit, each object also carries `"why"` (the evidence for its model) and `"constrained"`
+//! (`false`: no photo constrains its material, so its values are start values, not estimates).
 //! Values are linear; `emission` is radiance in the units of the input images (the scale `e` of the
 //! emission profile: `L_e = e` for `uniform`, `L_e = e (i·n)+` for `cosine`).
 
@@ -44,6 +46,14 @@ pub struct ObjectMaterial {
     pub emission: [f32; 3],
     /// The model the fit chose for the object (e.g. `diffuse`, `specular+emission`).
     pub model: String,
+    /// Why the fit chose `model`: the held-out evidence for or against each term (issue 7). Optional, so
+    /// files without it (written by hand, or by earlier versions) still read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub why: Option<String>,
+    /// `false` when the photos cannot constrain the object's material (seen by no camera, or in too few
+    /// pixels): its values are then the fit's start values, not estimates. Optional like `why`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub constrained: Option<bool>,
 }
 
 /// Errors reading a materials file or matching it to a scene.
@@ -141,6 +151,8 @@ mod tests {
                 specular: 0.5,
                 emission: [10.0, 9.0, 8.0],
                 model: "diffuse+emission".into(),
+                why: None,
+                constrained: None,
             }],
         }
     }

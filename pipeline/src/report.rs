@@ -270,7 +270,12 @@ pub fn html(data: &ReportData) -> String {
             o.id,
             escape(&o.label),
             o.triangles,
-            escape(&o.model),
+            // Issue 7: values no photo constrains are flagged, not presented as estimates.
+            if o.constrained == Some(false) {
+                format!("{} (unconstrained)", escape(&o.model))
+            } else {
+                escape(&o.model)
+            },
             swatch(o.base_color, 1.0),
             o.roughness,
             o.metallic,
@@ -379,6 +384,8 @@ mod tests {
                 specular: 0.0,
                 emission: [0.0; 3],
                 model: "diffuse".into(),
+                why: None,
+                constrained: Some(false),
             }],
             why: vec!["because".into()],
             notes: vec![],
@@ -386,6 +393,7 @@ mod tests {
         let page = html(&data);
         assert!(!page.contains("<script>"));
         assert!(page.contains("&lt;script&gt;"));
+        assert!(page.contains("diffuse (unconstrained)"));
         assert_eq!(page.matches("data:image/png;base64,").count(), 3);
         assert!(page.contains("<svg") && page.contains("<polyline"));
         assert!(page.contains("background:#ff0000"));

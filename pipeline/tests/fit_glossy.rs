@@ -1,23 +1,22 @@
-//! Model selection on glossy dielectrics (issue 7): objects with a specular lobe gain it, diffuse walls stay
-//! diffuse, and the light is still found.
+//! Model selection on glossy dielectrics (issue 7): the objects with a specular lobe (floor: specular 0.8,
+//! roughness 0.4; box: specular 1, roughness 0.25) gain it and their roughness comes within 0.05 of the truth;
+//! the diffuse walls and ceiling stay diffuse, and the hidden light is still found.
 //!
-//! Ignored because issue 7's acceptance is not met yet: the model decisions asserted here hold (measured:
-//! floor kept the lobe with t = 3.5, gain 0.8 %; box t = 3.3, gain 1.8 %; walls diffuse), but only marginally
-//! above the thresholds, and the recovered roughness is off by more than 0.05 (floor 0.20 for 0.4, box 0.33
-//! for 0.25), so this is a measurement to improve on rather than a stable regression test.
-//! Run with `cargo test -p pipeline --test fit_glossy -- --ignored --nocapture`.
+//! Measured (seed 0): floor roughness 0.392, specular 0.796 (kept, t = 9.3); box roughness 0.250, specular
+//! 1.000 (kept, t = 4.4); every wall's best lobe made the held-out residual worse (t from −10 to −33).
+//! `FIT_GLOSSY_SEED=n` reruns it with another fit seed (a manual robustness check; the default is 0).
 
 use pipeline::fit::{FitInputs, ObjectFitSettings};
 use std::path::Path;
 
 #[test]
-#[ignore = "issue 7 acceptance not met yet: the specular lobe is not kept (see module docs)"]
 fn glossy_objects_gain_the_specular_lobe_and_walls_stay_diffuse() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/glossy.toml");
     let built = pipeline::synth::build(pipeline::synth::load_desc(&path).unwrap(), &path).unwrap();
     let images = pipeline::synth::photos(&built).unwrap();
     let objects = pipeline::synth::fit_objects(&built);
-    let settings = ObjectFitSettings::default();
+    let seed = std::env::var("FIT_GLOSSY_SEED").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
+    let settings = ObjectFitSettings { seed, ..ObjectFitSettings::default() };
     let inputs = FitInputs {
         scene: &built.scene,
         cameras: &built.cameras,
@@ -54,5 +53,15 @@ fn glossy_objects_gain_the_specular_lobe_and_walls_stay_diffuse() {
             "diffuse"
         };
         assert_eq!(out.per_object[k].model, want, "{}: {}", o.label, out.per_object[k].why);
+        if o.specular > 0.0 {
+            // Issue 7's acceptance: roughness within 0.05 of the truth.
+            let r = out.params.materials[k].roughness;
+            assert!((r - o.roughness).abs() <= 0.05, "{}: roughness {r} for {}", o.label, o.roughness);
+        }
     }
+    let light = built.desc.objects.iter().position(|o| o.hidden).unwrap();
+    let truth = built.params.emission[light];
+    let err = ((out.params.emission[light] - truth).abs() / truth).max_element();
+    // Issue 5's tolerance for the hidden light.
+    assert!(err <= 0.05, "light emission {} for {truth}", out.params.emission[light]);
 }

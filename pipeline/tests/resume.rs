@@ -51,8 +51,7 @@ fn rerun_skips_every_stage_and_an_object_key_reruns_object_and_later() {
 
     let (code, err) = pipeline(&["run", cfg]);
     assert_eq!(code, 0, "{err}");
-    assert_eq!(decisions(&err, "running"), ["ingest", "preprocess", "object", "export"], "{err}");
-    assert!(err.contains("[triangle] skipped: triangle stage not implemented yet"), "{err}");
+    assert_eq!(decisions(&err, "running"), ["ingest", "preprocess", "object", "triangle", "export"], "{err}");
     let out = dir.path().join("out");
     let materials = pipeline::materials::MaterialsFile::read(&out.join("materials.json")).unwrap();
     assert_eq!(materials.objects.len(), 9);
@@ -68,16 +67,17 @@ fn rerun_skips_every_stage_and_an_object_key_reruns_object_and_later() {
 
     let (code, err) = pipeline(&["run", cfg, "--set", "object.lr=0.05"]);
     assert_eq!(code, 0, "{err}");
-    assert_eq!(decisions(&err, "running"), ["object", "export"], "{err}");
-    assert_eq!(decisions(&err, "skipped"), ["ingest", "preprocess", "triangle"], "{err}");
+    assert_eq!(decisions(&err, "running"), ["object", "triangle", "export"], "{err}");
+    assert_eq!(decisions(&err, "skipped"), ["ingest", "preprocess"], "{err}");
     assert!(err.contains("[object] running: its config section changed"), "{err}");
+    assert!(err.contains("[triangle] running: upstream stage `object` reran"), "{err}");
     assert!(err.contains("[export] running: upstream stage `object` reran"), "{err}");
 
     // Back to the first config: object reruns again (its manifest now records lr = 0.05) and is
     // deterministic, so materials.json is what the first run wrote.
     let (code, err) = pipeline(&["run", cfg]);
     assert_eq!(code, 0, "{err}");
-    assert_eq!(decisions(&err, "running"), ["object", "export"], "{err}");
+    assert_eq!(decisions(&err, "running"), ["object", "triangle", "export"], "{err}");
     let again = pipeline::materials::MaterialsFile::read(&out.join("materials.json")).unwrap();
     assert_eq!(again, materials);
 }

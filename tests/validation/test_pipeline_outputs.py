@@ -89,8 +89,11 @@ def test_materials_json_has_the_documented_schema(run_dir):
     src = PlyData.read(str(DEMO / "house_segmentations" / "demo.ply"))
     seg, counts = np.unique(np.asarray(src["face"]["segment_id"]), return_counts=True)
     assert sorted(o["id"] for o in m["objects"]) == sorted(seg.tolist())
+    # Issue 7: the fit also says why it chose each model and whether the photos constrain the object.
+    optional = {"why", "constrained"}
     for o in m["objects"]:
-        assert set(o) == keys
+        assert keys <= set(o) <= keys | optional
+        assert isinstance(o.get("why", ""), str) and isinstance(o.get("constrained", True), bool)
         assert o["triangles"] == counts[list(seg).index(o["id"])]
         assert len(o["base_color"]) == 3 and len(o["emission"]) == 3
         assert all(0.0 <= x <= 1.0 for x in [*o["base_color"], o["roughness"], o["metallic"], o["specular"]])

@@ -53,6 +53,23 @@ pub fn solve_step(
     free_base_color: &[bool],
     opts: &SolveOptions,
 ) -> Result<f64, TracerError> {
+    let none = vec![false; x.len() / layout::PER_OBJECT];
+    solve_step_pinned(ctx, x, samples, spp, iteration_key, free_base_color, &none, opts)
+}
+
+/// [`solve_step`] with the emission of every object with `no_emission[k]` held at 0 (the model selection's
+/// verdict that it does not emit).
+#[allow(clippy::too_many_arguments)]
+pub fn solve_step_pinned(
+    ctx: &Ctx<'_>,
+    x: &mut [f64],
+    samples: &[Sample],
+    spp: u32,
+    iteration_key: u64,
+    free_base_color: &[bool],
+    no_emission: &[bool],
+    opts: &SolveOptions,
+) -> Result<f64, TracerError> {
     let k_count = x.len() / layout::PER_OBJECT;
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
     let params = layout::to_params(x);
@@ -111,6 +128,10 @@ pub fn solve_step(
             let s = cols[k].iter().zip(&cols2[k]).map(|(a, b)| 0.5 * (a + b).abs()).sum::<f64>() / m.max(1) as f64;
             penalty[k] = opts.emission_l1 * s;
             var[k] = x[idx(k, EMISSION + c)];
+            if no_emission.get(k).copied().unwrap_or(false) {
+                hi[k] = 0.0;
+                var[k] = 0.0;
+            }
         }
         for (i, &k) in free.iter().enumerate() {
             let v = k_count + i;

@@ -262,6 +262,11 @@ pub fn fit_objects(
 
     let x = average_refinement(&state, s);
     let (x, per_object) = select::choose_models(&ctx, s, &sets, &x, &free)?;
+    // Nothing non-finite is ever discarded or clamped away silently: like every step above, the model
+    // selection's result is checked and a non-finite value aborts the fit (tests/stability_extremes.rs).
+    if !x.iter().all(|v| v.is_finite()) {
+        return Err(FitError::NonFinite { what: "parameter after model selection", iteration: total });
+    }
     Ok(FitOutcome { params: layout::to_params(&x), history: state.history, per_object })
 }
 

@@ -34,6 +34,13 @@ pub mod stream {
     pub const HOLDOUT: u64 = 1;
     pub const BATCH: u64 = 2;
     pub const SOLVE_PIXELS: u64 = 3;
+    pub const PROFILE: u64 = 4;
+}
+
+/// A pixel's key for [`uniform`]: view, row and column packed (20 bits each for rows and columns).
+#[must_use]
+pub fn pixel_key(p: PixelRef) -> u64 {
+    (u64::from(p.view) << 40) | (u64::from(p.y) << 20) | u64::from(p.x)
 }
 
 /// Training and held-out pixels.
@@ -68,7 +75,7 @@ pub fn collect(
                 let object = scene.intersect(o, d, f32::INFINITY).map(|(hit, _)| scene.material_of(hit.tri));
                 let pixel = PixelRef { view: view as u32, x, y };
                 let s = Sample { pixel, target: t, object };
-                let key = (u64::from(pixel.view) << 40) | (u64::from(y) << 20) | u64::from(x);
+                let key = pixel_key(pixel);
                 if uniform(seed, stream::HOLDOUT, key, 0) < holdout_fraction {
                     sets.holdout.push(s);
                 } else {

@@ -2,11 +2,13 @@
 //! term or gains a specular lobe only when that lowers the residual on held-out pixels significantly (a
 //! paired t-test over the held-out pixels, plus a minimum relative improvement).
 
-use super::emission_solve::{Unknowns, coupled_step, solve_step};
+use super::emission_solve::{Unknowns, solve_step, solve_step_pinned};
 use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, idx};
+use super::linear;
 use super::object::{keys, solve_options};
 use super::pixels::{PixelSets, Sample};
+use super::roughness;
 use super::{FitError, ObjectFitSettings, ObjectModel};
 use tracer::PixelRef;
 
@@ -14,12 +16,23 @@ use tracer::PixelRef;
 /// with tens of objects, a spurious acceptance is unlikely)…
 const T_KEEP: f64 = 3.0;
 /// …and the improvement is at least 0.5 % of the mean held-out |target| (a statistically clear but practically
-/// invisible gain does not justify extra parameters; the glossy fixture's floor, specular 0.8 and roughness
-/// 0.4, gains 0.75 %, while on the default scene every diffuse wall's trial made the residual worse).
+/// invisible gain does not justify extra parameters; on the glossy fixture the floor's lobe gains 4.2 % and
+/// the box's 12 %, while on it and on the default scene every diffuse wall's best lobe made the residual worse).
 const MIN_GAIN: f64 = 0.005;
-/// Starting point of the specular trial: a mid-range lobe, from which Adam can move either way.
+/// Linearisation point of the roughness search's (base colour, specular) solve: a mid-range lobe, so that
+/// the tracer samples the specular lobe and its Jacobian column is not zero.
 const TRIAL_SPECULAR: f64 = 0.5;
 const TRIAL_ROUGHNESS: f64 = 0.5;
+/// Pixels of an object in its roughness search (each evaluation: a value render and 3 gradient passes at
+/// `solve_spp / 2` paths). 256 pixels × 3 channels keep the profile's noise well under the 5–20 % spread of
+/// a glossy object's profile over the roughness grid, at half the cost of 512 (measured below in
+/// tests/fit_glossy.rs).
+const PROFILE_PIXELS: usize = 256;
+/// A dropped emission whose object's best base colour without it differs by more than this triggers a re-fit
+/// of emission and base colour under the chosen model: 0.02 is 4× the fit's per-object albedo noise on the
+/// default scene (mean L1 0.0023), so the tiny emissions that walls are routinely given and denied (≤ 0.003
+/// radiance, base colour change ≲ 0.005) cost nothing, while an emission that replaced albedo is undone.
+const REFIT_MATERIAL: f64 = 0.02;
 
 /// Mean and t-statistic of paired differences.
 #[must_use]
@@ -69,44 +82,66 @@ pub fn choose_models(
     // Specular lobe trial.
     let mut glossy = vec![false; k_count];
     if s.try_specular && free.iter().any(|&f| f) {
+        // Each object's lobe from a 1-D search on roughness with base colour and specular profiled out
+        // ([`roughness`]), on its own training pixels, the other objects diffuse as fitted.
+        // Half of every object's training pixels choose its lobe; the other half join the held-out pixels in
+        // the test that decides whether to keep it (the lobe was not fitted on them, and a small glossy object
+        // has too few held-out pixels alone: the box of the glossy fixture has ~60, and its highlight pixels
+        // make the paired differences noisy).
+        let in_profile = |t: &Sample| {
+            super::pixels::uniform(ctx.seed, super::pixels::stream::PROFILE, super::pixels::pixel_key(t.pixel), 0) < 0.5
+        };
+        let lobe_test: Vec<Sample> = test
+            .iter()
+            .copied()
+            .chain(if sets.holdout.is_empty() {
+                Vec::new()
+            } else {
+                sets.train.iter().filter(|t| !in_profile(t)).copied().collect()
+            })
+            .collect();
         let mut xt = x.clone();
         for k in (0..k_count).filter(|&k| free[k]) {
-            xt[idx(k, SPECULAR)] = TRIAL_SPECULAR;
-            xt[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
-        }
-        // Gauss–Newton on every unknown of the trial model. Measured on the glossy fixture: 100 Adam iterations
-        // from this start left roughness and specular near where they began; 4 coupled steps bring the box
-        // (roughness 0.25, specular 1) to roughness 0.23–0.33, specular 0.9–1.0, though the floor's roughness
-        // (0.4) is not identified (drifts to 0) and its held-out gain is not yet significant.
-        let lobe: Vec<bool> = free.to_vec();
-        for step in 1..=s.specular_trial_steps {
-            let key = keys::SELECT + u64::from(step);
-            let samples = super::pixels::draw(
-                &sets.train,
-                s.solve_pixels as usize,
-                ctx.seed,
-                super::pixels::stream::SOLVE_PIXELS,
-                key,
-            );
-            coupled_step(
+            let own: Vec<Sample> =
+                sets.train.iter().filter(|t| t.object == Some(k as u32) && in_profile(t)).copied().collect();
+            let samples = if own.len() <= PROFILE_PIXELS {
+                own
+            } else {
+                super::pixels::draw(
+                    &own,
+                    PROFILE_PIXELS,
+                    ctx.seed,
+                    super::pixels::stream::SOLVE_PIXELS,
+                    keys::SELECT + k as u64,
+                )
+            };
+            let mut base = x.clone();
+            base[idx(k, SPECULAR)] = TRIAL_SPECULAR;
+            base[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
+            let (best, evals) = roughness::search(
                 ctx,
-                &mut xt,
+                &base,
+                k,
                 &samples,
-                s.solve_spp,
-                key,
-                free,
-                &lobe,
-                &solve_options(s, Unknowns::EmissionAndBaseColor),
+                (s.solve_spp / 2).max(1),
+                keys::SELECT + (4 << 20) + k as u64,
             )?;
+            tracing::debug!(object = k, ?best, evals = evals.len(), "roughness search");
+            for c in 0..3 {
+                xt[idx(k, BASE_COLOR + c)] = best.base_color[c];
+            }
+            xt[idx(k, ROUGHNESS)] = best.roughness;
+            xt[idx(k, SPECULAR)] = best.specular;
         }
         // Common random numbers for both renders: the paired differences then carry little path noise.
         let key = keys::SELECT + (1 << 20);
+        let lobe_pix: Vec<PixelRef> = lobe_test.iter().map(|t| t.pixel).collect();
         let render = |v: &[f64]| {
             tracer::render_pixels(
                 ctx.scene,
                 &layout::to_params(v),
                 ctx.cameras,
-                &pix,
+                &lobe_pix,
                 s.holdout_spp,
                 ctx.settings,
                 ctx.seed,
@@ -115,7 +150,7 @@ pub fn choose_models(
         };
         let (i_d, i_t) = (render(&x)?, render(&xt)?);
         for k in (0..k_count).filter(|&k| free[k]) {
-            let d: Vec<f64> = test
+            let d: Vec<f64> = lobe_test
                 .iter()
                 .enumerate()
                 .filter(|(_, t)| t.object == Some(k as u32))
@@ -133,13 +168,17 @@ pub fn choose_models(
                     x[idx(k, p)] = xt[idx(k, p)];
                 }
                 why[k].push(format!(
-                    "specular lobe kept: it lowers the {test_name} L1 by {:.1} % of the mean radiance on {} pixels (t = {t:.1})",
+                    "specular lobe (roughness {:.3}, specular {:.3}) kept: it lowers the {test_name} L1 by {:.1} % of the mean radiance on {} pixels (t = {t:.1})",
+                    xt[idx(k, ROUGHNESS)],
+                    xt[idx(k, SPECULAR)],
                     100.0 * rel,
                     d.len()
                 ));
             } else {
                 why[k].push(format!(
-                    "diffuse: a specular lobe changed the {test_name} L1 by {:+.2} % on {} pixels (t = {t:.1}; needs t > {T_KEEP} and > {:.0} %)",
+                    "diffuse: the best specular lobe (roughness {:.3}, specular {:.3}) changed the {test_name} L1 by {:+.2} % on {} pixels (t = {t:.1}; needs t > {T_KEEP} and > {:.1} %)",
+                    xt[idx(k, ROUGHNESS)],
+                    xt[idx(k, SPECULAR)],
                     -100.0 * rel,
                     d.len(),
                     100.0 * MIN_GAIN
@@ -147,15 +186,34 @@ pub fn choose_models(
             }
         }
         if glossy.iter().any(|&g| g) {
-            let key = keys::SELECT + (2 << 20);
-            let samples = super::pixels::draw(
-                &sets.train,
-                s.solve_pixels as usize,
-                ctx.seed,
-                super::pixels::stream::SOLVE_PIXELS,
-                key,
-            );
-            solve_step(ctx, &mut x, &samples, s.solve_spp, key, free, &solve_options(s, Unknowns::Emission))?;
+            // With the lobes in place, `specular_trial_steps` Gauss–Newton steps on emission and base colour
+            // (lobes fixed), averaged over their second half like the refinement: the diffuse-only refinement
+            // had given the glossy floor's reflected light to the other surfaces (glossy fixture: ceiling
+            // albedo +5 %, light −2 %). Without steps, only the emission is re-solved.
+            let steps = s.specular_trial_steps;
+            let unknowns = if steps == 0 { Unknowns::Emission } else { Unknowns::EmissionAndBaseColor };
+            let mut sum = vec![0.0; x.len()];
+            let mut n_avg = 0.0;
+            for step in 1..=steps.max(1) {
+                let key = keys::SELECT + (2 << 20) + u64::from(step);
+                let samples = super::pixels::draw(
+                    &sets.train,
+                    s.solve_pixels as usize,
+                    ctx.seed,
+                    super::pixels::stream::SOLVE_PIXELS,
+                    key,
+                );
+                solve_step(ctx, &mut x, &samples, s.solve_spp, key, free, &solve_options(s, unknowns))?;
+                if step > steps / 2 {
+                    sum.iter_mut().zip(&x).for_each(|(a, v)| *a += v);
+                    n_avg += 1.0;
+                }
+            }
+            for k in 0..k_count {
+                for p in (BASE_COLOR..BASE_COLOR + 3).chain(EMISSION..EMISSION + 3) {
+                    x[idx(k, p)] = sum[idx(k, p)] / n_avg;
+                }
+            }
         }
     }
 
@@ -174,21 +232,53 @@ pub fn choose_models(
             p
         })
         .collect();
+    // The model without an object's emission gets its own best base colour: a visible surface's emission and
+    // albedo both explain its brightness, and comparing at the albedo fitted *with* the emission favours
+    // keeping it. Measured on a room lit by a small lamp 1e4× brighter than the walls
+    // (tests/stability_extremes.rs): without the refit the ceiling kept an emission of 1.6e-4 of the lamp
+    // (held-out gain 1.1 %, t > 3) and an albedo 0.09–0.17 too dark. The refit is a 1-variable L1 fit per
+    // channel on the test pixels themselves, which if anything favours the smaller model.
+    let rho_rows = if (0..k_count).any(|k| free[k] && (0..3).any(|c| x[idx(k, EMISSION + c)] > 0.0)) {
+        jacobian::pixel_rows(ctx, &params, &pix, s.solve_spp, keys::SELECT + (5 << 20))?
+    } else {
+        Vec::new()
+    };
     let mut emits = vec![false; k_count];
+    let mut material_refit = false;
     for k in 0..k_count {
         let e = [x[idx(k, EMISSION)], x[idx(k, EMISSION + 1)], x[idx(k, EMISSION + 2)]];
         if e.iter().all(|&v| v == 0.0) {
             why[k].push("no emission: the L1-penalised emission solve set it to 0".into());
             continue;
         }
-        let d: Vec<f64> = test
-            .iter()
-            .enumerate()
-            .map(|(j, t)| {
-                let without: [f64; 3] = std::array::from_fn(|c| pred[j][c] - je[k][j][c] * e[c]);
-                l1(target(t), without) - l1(target(t), pred[j])
-            })
-            .collect();
+        let mut without: Vec<[f64; 3]> =
+            (0..test.len()).map(|j| std::array::from_fn(|c| pred[j][c] - je[k][j][c] * e[c])).collect();
+        let mut delta = [0.0; 3];
+        if free[k] && !rho_rows.is_empty() {
+            for c in 0..3 {
+                let col = vec![rho_rows.iter().map(|r| r.base_color[k][c]).collect::<Vec<f64>>()];
+                let tgt: Vec<f64> = test.iter().enumerate().map(|(j, t)| target(t)[c] - without[j][c]).collect();
+                let rho = x[idx(k, BASE_COLOR + c)];
+                let mut v = [0.0];
+                let problem = linear::Problem {
+                    cols: &col,
+                    target: &tgt,
+                    second: None,
+                    penalty: &[0.0],
+                    prox: &[0.0],
+                    anchor: &[0.0],
+                    lo: &[-rho],
+                    hi: &[1.0 - rho],
+                };
+                linear::solve(&problem, linear::DataLoss::L1, &mut v, 20);
+                delta[c] = v[0];
+                for (j, w) in without.iter_mut().enumerate() {
+                    w[c] += col[0][j] * v[0];
+                }
+            }
+        }
+        let d: Vec<f64> =
+            test.iter().enumerate().map(|(j, t)| l1(target(t), without[j]) - l1(target(t), pred[j])).collect();
         let (gain, t) = paired_t(&d);
         let rel = gain / mean_target.max(f64::MIN_POSITIVE);
         if t > T_KEEP && rel > MIN_GAIN * 1e-2 {
@@ -198,8 +288,12 @@ pub fn choose_models(
                 100.0 * rel
             ));
         } else {
+            if delta.iter().any(|d| d.abs() > REFIT_MATERIAL) {
+                material_refit = true;
+            }
             why[k].push(format!(
-                "emission {e:.4?} dropped: it changes the {test_name} L1 by {:+.4} % (t = {t:.1}; needs t > {T_KEEP})",
+                "emission {e:.4?} dropped: it changes the {test_name} L1 by {:+.4} % (t = {t:.1}; needs t > {T_KEEP}); \
+                 without it the best base colour differs by {delta:+.3?}",
                 -100.0 * rel
             ));
         }
@@ -209,12 +303,48 @@ pub fn choose_models(
             x[idx(k, EMISSION + c)] = 0.0;
         }
     }
+    if material_refit {
+        // A dropped emission had been standing in for albedo: re-fit emission and base colour under the chosen
+        // model (non-emitters pinned at 0), averaging the steps' second half like the refinement.
+        let no_emission: Vec<bool> = emits.iter().map(|e| !e).collect();
+        let steps = s.refine_steps.max(2);
+        let mut sum = vec![0.0; x.len()];
+        let mut n_avg = 0.0;
+        for step in 1..=steps {
+            let key = keys::SELECT + (6 << 20) + u64::from(step);
+            let samples = super::pixels::draw(
+                &sets.train,
+                s.solve_pixels as usize,
+                ctx.seed,
+                super::pixels::stream::SOLVE_PIXELS,
+                key,
+            );
+            let opts = solve_options(s, Unknowns::EmissionAndBaseColor);
+            solve_step_pinned(ctx, &mut x, &samples, s.solve_spp, key, free, &no_emission, &opts)?;
+            if step > steps / 2 {
+                sum.iter_mut().zip(&x).for_each(|(a, v)| *a += v);
+                n_avg += 1.0;
+            }
+        }
+        for k in 0..k_count {
+            for p in (BASE_COLOR..BASE_COLOR + 3).chain(EMISSION..EMISSION + 3) {
+                x[idx(k, p)] = sum[idx(k, p)] / n_avg;
+            }
+        }
+    }
     let models = (0..k_count)
         .map(|k| {
             let mut reasons = why[k].clone();
             if !free[k] {
+                let n = sets.train_per_object.get(k).copied().unwrap_or(0);
+                let seen = if n == 0 {
+                    "seen by no training pixel".to_owned()
+                } else {
+                    format!("seen in only {n} training pixels")
+                };
                 reasons.insert(0, format!(
-                    "material unconstrained: seen in fewer than {} training pixels; base colour left at the start value",
+                    "material unconstrained: {seen} (fewer than {}); its base colour, roughness and specular are the \
+                     start values, not estimates",
                     super::object::MIN_PIXELS
                 ));
             }

@@ -62,8 +62,8 @@ pub struct ObjectFitSettings {
     pub holdout_spp: u32,
     /// Try a specular lobe per object and keep it when the held-out residual improves significantly.
     pub try_specular: bool,
-    /// Gauss–Newton steps of the specular trial (emission, base colour, roughness and specular of every seen
-    /// object, jointly).
+    /// Gauss–Newton steps on emission and base colour after specular lobes were kept (lobes fixed; averaged
+    /// over the second half). The lobe itself comes from a roughness search ([`crate::fit::roughness`]).
     pub specular_trial_steps: u32,
 }
 

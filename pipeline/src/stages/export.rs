@@ -7,7 +7,11 @@
 //! - `output.path/export/report.html` — self-contained report ([`crate::report`]): photos beside re-renders
 //!   with the fitted materials and error maps, loss curves, the per-object table.
 //!
-//! Issue 6 adds `export/mesh.ply`, `export/textured.obj` and `export/scene.glb` here.
+//! - `output.path/export/mesh.ply`, `textured.obj` + `textured.mtl` + `albedo.png` / `albedo.exr`,
+//!   `scene.glb` ([`crate::export::write_all`]): the per-triangle (subdivided) result of the `triangle` stage
+//!   when it wrote one, else the per-object result expanded per triangle ([`export_mesh`], also what
+//!   `pipeline export RUN_DIR` runs). The glTF scene is turned Y-up when the cameras' up axes say the scan is
+//!   Z-up (Matterport and our synthetic scans are).
 
 use std::path::PathBuf;
 
@@ -158,6 +162,70 @@ pub fn spread(n: usize, k: usize) -> Vec<usize> {
     (0..k).map(|i| i * n / k).collect()
 }
 
+/// True when the cameras' up axes (camera +y in world) point mostly along world ±z: the scan is Z-up.
+#[must_use]
+pub fn scan_is_z_up(views: &[ingest::scan::View]) -> bool {
+    let up = views.iter().fold(glam::DVec3::ZERO, |acc, v| acc + v.camera.cam_to_world.y_axis.truncate());
+    up.z.abs() > up.y.abs()
+}
+
+/// Writes the mesh exports of a run directory into `run_dir/export/` (see the module docs); returns the
+/// files written, relative to `run_dir`.
+pub fn export_mesh(run_dir: &std::path::Path) -> Result<Vec<PathBuf>, StageError> {
+    use crate::export::{ExportInput, ExportOptions, expand_per_object, write_all};
+    let scene_data = Ingested::read(run_dir)?;
+    let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
+    let segment = |o: u32| i32::try_from(ids[o as usize]).unwrap_or(i32::MAX);
+    let opts = ExportOptions { z_up: scan_is_z_up(&scene_data.views), ..ExportOptions::default() };
+    let dir = run_dir.join("export");
+    let report = match super::triangle::read_result(run_dir)? {
+        Some(st) => {
+            if let Some(t) = st.face_object.iter().position(|&o| o as usize >= ids.len()) {
+                return Err(StageError::Artefact {
+                    path: run_dir.join("triangle").join(super::triangle::RESULT_FILE),
+                    message: format!("triangle {t}: object {} of {}", st.face_object[t], ids.len()),
+                });
+            }
+            let emission: Vec<glam::Vec3> = st.face_object.iter().map(|&o| st.emission[o as usize]).collect();
+            let segment_id: Vec<i32> = st.face_object.iter().map(|&o| segment(o)).collect();
+            let input = ExportInput {
+                positions: &st.positions,
+                triangles: &st.triangles,
+                materials: &st.materials,
+                emission: &emission,
+                segment_id: &segment_id,
+            };
+            write_all(&dir, &input, &opts)?
+        }
+        None => {
+            let path = run_dir.join("object").join(super::object_result::MATERIALS_FILE);
+            let params = read_result(run_dir)?.params_for(&ids, &path)?;
+            let per = expand_per_object(&scene_data.face_object, &ids, &params.materials, &params.emission)?;
+            let input = ExportInput {
+                positions: &scene_data.positions,
+                triangles: &scene_data.triangles,
+                materials: &per.materials,
+                emission: &per.emission,
+                segment_id: &per.segment_id,
+            };
+            write_all(&dir, &input, &opts)?
+        }
+    };
+    eprintln!(
+        "[export] {} triangles, {} segments, atlas {}x{} → {}",
+        report.atlas.triangles,
+        report.segments,
+        report.atlas.width,
+        report.atlas.height,
+        dir.display()
+    );
+    Ok(report
+        .files
+        .iter()
+        .map(|f| f.strip_prefix(run_dir).map(std::path::Path::to_path_buf).unwrap_or_else(|_| f.clone()))
+        .collect())
+}
+
 /// Runs the stage.
 pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let plan = ctx.plan;
@@ -215,12 +283,14 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         ],
     };
     write_atomic(&ctx.dir.join(REPORT_FILE), crate::report::html(&data).as_bytes())?;
-    eprintln!("[export] wrote {}", plan.output.join("materials.json").display());
-    Ok(vec![
+    let mut files = vec![
         PathBuf::from("materials.json"),
         PathBuf::from("export").join(TRAJECTORIES_FILE),
         PathBuf::from("export").join(REPORT_FILE),
-    ])
+    ];
+    files.extend(export_mesh(&plan.output)?);
+    eprintln!("[export] wrote {}", plan.output.join("materials.json").display());
+    Ok(files)
 }
 
 #[cfg(test)]

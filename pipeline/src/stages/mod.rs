@@ -7,6 +7,7 @@ pub mod ingest;
 pub mod object;
 pub mod object_result;
 pub mod preprocess;
+pub mod triangle;
 
 use std::path::PathBuf;
 
@@ -38,6 +39,10 @@ pub enum StageError {
     Fit(#[from] crate::fit::FitError),
     #[error(transparent)]
     Materials(#[from] crate::materials::MaterialsError),
+    #[error(transparent)]
+    Triangle(crate::triangle::TriangleError),
+    #[error(transparent)]
+    Export(#[from] crate::export::ExportError),
 }
 
 /// The real stages.
@@ -45,8 +50,8 @@ pub enum StageError {
 pub struct Stages;
 
 impl StageExecutor for Stages {
-    fn is_implemented(&self, stage: StageId) -> bool {
-        stage != StageId::Triangle
+    fn is_implemented(&self, _stage: StageId) -> bool {
+        true
     }
 
     fn run(&mut self, ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
@@ -54,7 +59,7 @@ impl StageExecutor for Stages {
             StageId::Ingest => ingest::run(ctx),
             StageId::Preprocess => preprocess::run(ctx),
             StageId::Object => object::run(ctx),
-            StageId::Triangle => Ok(Vec::new()),
+            StageId::Triangle => triangle::run(ctx),
             StageId::Export => export::run(ctx),
         }
     }

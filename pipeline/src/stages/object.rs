@@ -122,6 +122,8 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
                     specular: m.specular,
                     emission: e.to_array(),
                     model: outcome.per_object.get(i).map(|p| p.model.clone()).unwrap_or_default(),
+                    why: outcome.per_object.get(i).map(|p| p.why.clone()),
+                    constrained: outcome.per_object.get(i).map(|p| p.constrained),
                 }
             })
             .collect(),

@@ -24,6 +24,7 @@
 //! specular = 0.0
 //! emission = [0, 0, 0]
 //! hidden = false              # true: generation fails if any camera pixel sees this object
+//! checker = { squares = 4, colors = [[0.8, 0.8, 0.8], [0.1, 0.1, 0.1]] }   # optional, quads only
 //!
 //! [[cameras]]
 //! eye = [1, 1, 1.5]
@@ -84,6 +85,30 @@ pub struct ObjectSpec {
     pub emission: [f32; 3],
     #[serde(default)]
     pub hidden: bool,
+    /// A checkerboard albedo (quads only): the photos are rendered from a finely tessellated copy of the quad
+    /// whose triangles carry the square colours, while the scan mesh keeps only the `subdivisions` grid;
+    /// `base_color` is then unused for rendering (the ground truth lists the mean of the two colours).
+    #[serde(default)]
+    pub checker: Option<Checker>,
+}
+
+/// `checker = { squares = N, colors = [[r, g, b], [r, g, b]] }`: N × N squares over the quad's (s, t) ∈ [0, 1]²,
+/// square (i, j) (i along `u`, j along `v`) has colour `colors[(i + j) % 2]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Checker {
+    pub squares: u32,
+    pub colors: [[f32; 3]; 2],
+}
+
+impl Checker {
+    /// The true albedo at quad parameters (s, t) ∈ [0, 1]².
+    #[must_use]
+    pub fn albedo_at(&self, s: f32, t: f32) -> [f32; 3] {
+        let n = self.squares.max(1);
+        let cell = |x: f32| ((x * n as f32).floor().max(0.0) as u32).min(n - 1);
+        self.colors[((cell(s) + cell(t)) % 2) as usize]
+    }
 }
 
 fn one() -> u32 {

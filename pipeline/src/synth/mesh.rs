@@ -15,7 +15,7 @@ pub struct SynthMesh {
 impl SynthMesh {
     /// Appends an n×n grid over the parallelogram `corner + s·u + t·v` with front face `u × v`
     /// (counter-clockwise winding seen from the front, the tracer's convention).
-    fn push_quad(&mut self, corner: Vec3, u: Vec3, v: Vec3, n: u32, object: u32) {
+    pub(crate) fn push_quad(&mut self, corner: Vec3, u: Vec3, v: Vec3, n: u32, object: u32) {
         let normal = u.cross(v).normalize_or_zero();
         let base = self.positions.len() as u32;
         for j in 0..=n {
@@ -80,6 +80,7 @@ mod tests {
             specular: 0.0,
             emission: [0.0; 3],
             hidden: false,
+            checker: None,
         }
     }
 

@@ -44,7 +44,11 @@ pub enum SynthError {
 #[derive(Debug)]
 pub struct BuiltScene {
     pub desc: SceneDesc,
+    /// The scan mesh (what the Matterport PLY holds).
     pub mesh: SynthMesh,
+    /// Object index of every triangle of `scene` (equals `mesh.object_of_tri` unless an object has a
+    /// `checker`, whose photos are rendered from a finer tessellation than the scan mesh).
+    pub render_object_of_tri: Vec<u32>,
     pub scene: tracer::Scene,
     pub params: tracer::Params,
     pub cameras: Vec<tracer::Camera>,
@@ -80,6 +84,11 @@ pub fn load_desc(path: &Path) -> Result<SceneDesc, SynthError> {
         {
             return Err(bad(format!("object {}: material parameters must lie in [0, 1]", o.id)));
         }
+        if let Some(c) = &o.checker
+            && (c.squares == 0 || !c.colors.iter().flatten().all(|&x| in_unit(x)))
+        {
+            return Err(bad(format!("object {}: checker needs squares ≥ 1 and colours in [0, 1]", o.id)));
+        }
         if !o.emission.iter().all(|&e| e >= 0.0 && e.is_finite()) {
             return Err(bad(format!("object {}: emission must be finite and ≥ 0", o.id)));
         }
@@ -93,17 +102,53 @@ pub fn build(desc: SceneDesc, path: &Path) -> Result<BuiltScene, SynthError> {
     for (i, o) in desc.objects.iter().enumerate() {
         mesh.push_object(o, i as u32);
     }
-    let scene = tracer::Scene::new(tracer::SceneInput {
-        positions: mesh.positions.clone(),
-        triangles: mesh.triangles.clone(),
-        normals: Some(mesh.normals.clone()),
-        material_of_tri: mesh.object_of_tri.clone(),
-        emitter_of_tri: mesh.object_of_tri.clone(),
-    })?;
-    let params = tracer::Params {
-        materials: desc.objects.iter().map(desc::ObjectSpec::material).collect(),
-        emission: desc.objects.iter().map(|o| Vec3::from(o.emission)).collect(),
+    let mut materials: Vec<tracer::Material> = desc.objects.iter().map(desc::ObjectSpec::material).collect();
+    let (render, material_of_tri) = if desc.objects.iter().any(|o| o.checker.is_some()) {
+        // Checker objects: one n×n grid cell per square (2 triangles), each cell's colour its own slot.
+        let mut render = SynthMesh::default();
+        let mut material_of_tri = Vec::new();
+        for (i, o) in desc.objects.iter().enumerate() {
+            let before = render.triangles.len();
+            match (o.checker, o.shape) {
+                (Some(ch), desc::Shape::Quad { corner, u, v }) => {
+                    let n = ch.squares.max(1);
+                    render.push_quad(corner.into(), u.into(), v.into(), n, i as u32);
+                    let slot0 = materials.len() as u32;
+                    for c in ch.colors {
+                        materials.push(tracer::Material { base_color: Vec3::from(c), ..o.material() });
+                    }
+                    // push_quad emits cells row by row (j along v, i along u), two triangles per cell.
+                    for j in 0..n {
+                        for i in 0..n {
+                            let slot = slot0 + (i + j) % 2;
+                            material_of_tri.extend([slot, slot]);
+                        }
+                    }
+                }
+                (Some(_), desc::Shape::Box { .. }) => {
+                    return Err(SynthError::Desc {
+                        path: path.to_path_buf(),
+                        message: format!("object {}: `checker` needs a quad shape", o.id),
+                    });
+                }
+                (None, _) => {
+                    render.push_object(o, i as u32);
+                    material_of_tri.extend(std::iter::repeat_n(i as u32, render.triangles.len() - before));
+                }
+            }
+        }
+        (render, material_of_tri)
+    } else {
+        (mesh.clone(), mesh.object_of_tri.clone())
     };
+    let scene = tracer::Scene::new(tracer::SceneInput {
+        positions: render.positions.clone(),
+        triangles: render.triangles.clone(),
+        normals: Some(render.normals.clone()),
+        material_of_tri,
+        emitter_of_tri: render.object_of_tri.clone(),
+    })?;
+    let params = tracer::Params { materials, emission: desc.objects.iter().map(|o| Vec3::from(o.emission)).collect() };
     let mut cameras = Vec::with_capacity(desc.cameras.len());
     for (k, c) in desc.cameras.iter().enumerate() {
         let pose = matterport::look_at(c.eye.into(), c.target.into(), c.up.into()).ok_or_else(|| SynthError::Desc {
@@ -117,7 +162,7 @@ pub fn build(desc: SceneDesc, path: &Path) -> Result<BuiltScene, SynthError> {
         rr_depth: desc.rr_depth,
         emission_profile: desc.emission_profile,
     };
-    Ok(BuiltScene { desc, mesh, scene, params, cameras, settings })
+    Ok(BuiltScene { desc, mesh, render_object_of_tri: render.object_of_tri, scene, params, cameras, settings })
 }
 
 /// Fails when a pixel centre of any camera sees an object marked `hidden`.
@@ -129,7 +174,7 @@ fn check_hidden(built: &BuiltScene, path: &Path) -> Result<(), SynthError> {
                 for (dx, dy) in [(0.0, 0.0), (-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)] {
                     let (o, d) = cam.ray(glam::Vec2::new(x as f32 + dx, y as f32 + dy));
                     if let Some((hit, _)) = built.scene.intersect(o, d, f32::INFINITY) {
-                        let obj = &built.desc.objects[built.mesh.object_of_tri[hit.tri as usize] as usize];
+                        let obj = &built.desc.objects[built.render_object_of_tri[hit.tri as usize] as usize];
                         if obj.hidden {
                             return Err(SynthError::HiddenSeen {
                                 path: path.to_path_buf(),
@@ -170,7 +215,8 @@ pub fn ground_truth_json(built: &BuiltScene) -> serde_json::Value {
                 (true, true) => "specular+emission",
             };
             serde_json::json!({
-                "id": o.id, "label": o.label, "triangles": tris[i], "base_color": o.base_color,
+                "id": o.id, "label": o.label, "triangles": tris[i],
+                "base_color": o.checker.map_or(o.base_color, |c| std::array::from_fn(|k| 0.5 * (c.colors[0][k] + c.colors[1][k]))),
                 "roughness": o.roughness, "metallic": o.metallic, "specular": o.specular,
                 "emission": o.emission, "model": model,
             })

@@ -1,0 +1,156 @@
+//! `pipeline bench`: the speed/accuracy trade-off of the per-object fit measured on the synthetic fixtures
+//! (issue 7), the paper's value/gradient path ablations (Fig. 9, 10), and the comparison with the Mitsuba 3
+//! baseline (tests/validation/mitsuba_baseline).
+//!
+//! - [`tradeoff`]: one-at-a-time sweeps around the default settings plus joint corners; per point wall time,
+//!   paths and rays traced ([`tracer::total_trace_stats`]), accuracy against the truth ([`metrics`]) and the
+//!   re-render error on held-back views; CSV + SVG (error against time, Pareto front) + markdown.
+//! - [`ablation`]: Adam-phase convergence against the number of value paths, and the split of a fixed path
+//!   budget between value and gradient paths.
+//! - [`mitsuba`]: runs the Mitsuba baseline and our fit on the default scene in one process and reports the
+//!   time each needs to reach the same albedo error.
+//!
+//! Everything is seeded; only the wall times vary between runs.
+
+pub mod ablation;
+pub mod metrics;
+pub mod mitsuba;
+pub mod scenes;
+pub mod svg;
+pub mod tradeoff;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::fit::{FitInputs, FitOutcome, ObjectFitSettings};
+use scenes::BenchScene;
+
+/// Why a benchmark failed.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    #[error("bench: {0}")]
+    Synth(#[from] crate::synth::SynthError),
+    #[error("bench: {0}")]
+    Fit(#[from] crate::fit::FitError),
+    #[error("bench: {0}")]
+    Tracer(#[from] tracer::TracerError),
+    #[error("bench: {path}: {message}", path = .path.display())]
+    Io { path: PathBuf, message: String },
+    #[error("bench: scene {scene}: {message}")]
+    Scene { scene: String, message: String },
+    #[error("bench: {0}")]
+    Other(String),
+}
+
+/// The settings of one fit of a sweep: the fit's own settings plus the two that change its inputs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitSetup {
+    pub object: ObjectFitSettings,
+    /// `tracer.max_depth` of the fit (the photos keep the depth they were rendered with).
+    pub max_depth: u32,
+    /// `images.downscale`: integer box-filter factor of the photos (and cameras) the fit sees.
+    pub downscale: u32,
+}
+
+/// The result of one timed fit.
+#[derive(Debug, Clone)]
+pub struct TimedFit {
+    pub outcome: FitOutcome,
+    /// Wall time of the fit alone (the inputs are prepared before the clock starts).
+    pub seconds: f64,
+    pub paths: u64,
+    pub rays: u64,
+}
+
+/// Runs the per-object fit of `scene` on the views `train_views` with `setup`, timed, counting the work the
+/// tracer did meanwhile.
+pub fn timed_fit(scene: &BenchScene, train_views: &[usize], setup: &FitSetup) -> Result<TimedFit, BenchError> {
+    let d = setup.downscale.max(1);
+    if !scenes::divisible(scene, d) {
+        return Err(BenchError::Scene {
+            scene: scene.name.clone(),
+            message: format!("image size not divisible by downscale {d}"),
+        });
+    }
+    let cameras: Vec<tracer::Camera> =
+        train_views.iter().map(|&k| scenes::downscale_camera(&scene.built.cameras[k], d)).collect();
+    let images: Vec<ingest::photo::LinearImage> =
+        train_views.iter().map(|&k| scenes::downscale_image(&scene.photos[k], d)).collect();
+    let objects = crate::synth::fit_objects(&scene.built);
+    let tracer_settings = tracer::TracerSettings { max_depth: setup.max_depth, ..scene.built.settings };
+    let inputs = FitInputs {
+        scene: &scene.built.scene,
+        cameras: &cameras,
+        images: &images,
+        objects: &objects,
+        settings: &setup.object,
+        tracer: &tracer_settings,
+    };
+    let before = tracer::total_trace_stats();
+    let t = Instant::now();
+    let outcome = crate::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &indicatif::ProgressBar::hidden())?;
+    let seconds = t.elapsed().as_secs_f64();
+    let after = tracer::total_trace_stats();
+    Ok(TimedFit { outcome, seconds, paths: after.paths - before.paths, rays: after.rays - before.rays })
+}
+
+/// Writes `bytes` to `path` atomically, creating the parent directory.
+pub fn write_file(path: &Path, bytes: &[u8]) -> Result<(), BenchError> {
+    let io = |e: &dyn std::fmt::Display| BenchError::Io { path: path.to_path_buf(), message: e.to_string() };
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| io(&e))?;
+    }
+    ingest::atomic::write_atomic(path, bytes).map_err(|e| io(&e))
+}
+
+/// The workspace root this binary was built from (where `data-fixtures/` and `tests/validation/` are).
+#[must_use]
+pub fn default_workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Runs one `pipeline bench` subcommand.
+pub fn run_command(what: crate::cli::BenchCommand) -> Result<(), BenchError> {
+    use crate::cli::BenchCommand;
+    let ws = |w: Option<PathBuf>| w.unwrap_or_else(default_workspace);
+    match what {
+        BenchCommand::Tradeoff(a) => {
+            let opts = tradeoff::TradeoffOptions {
+                workspace: ws(a.workspace),
+                scenes: a.scenes,
+                out: a.out.clone(),
+                quick: a.quick,
+            };
+            if a.replot {
+                tradeoff::replot(&opts)?;
+            } else {
+                tradeoff::run(&opts)?;
+            }
+            eprintln!("bench: wrote {}/tradeoff.{{csv,svg,md}}", a.out.display());
+        }
+        BenchCommand::Ablation(a) => {
+            let opts = ablation::AblationOptions {
+                workspace: ws(a.workspace),
+                scene: a.scene,
+                out: a.out.clone(),
+                quick: a.quick,
+            };
+            ablation::run(&opts)?;
+            eprintln!("bench: wrote {}/ablation_*.csv and ablation.svg", a.out.display());
+        }
+        BenchCommand::Mitsuba(a) => {
+            let workspace = ws(a.workspace);
+            let python = a.python.unwrap_or_else(|| workspace.join("deps/venv/bin/python"));
+            let opts = mitsuba::MitsubaOptions {
+                workspace,
+                scene: a.scene,
+                out: a.out,
+                budget_seconds: a.budget_seconds,
+                python,
+                quick: a.quick,
+            };
+            mitsuba::run(&opts)?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,224 @@
+//! A small hand-written SVG plotter: panels of scatter/line series on linear or log axes.
+
+use std::fmt::Write as _;
+
+/// One series of a panel.
+#[derive(Debug, Clone)]
+pub struct Series {
+    pub name: String,
+    /// CSS colour.
+    pub color: String,
+    pub points: Vec<(f64, f64)>,
+    /// Join the points with a polyline (in the given order).
+    pub line: bool,
+    /// Draw markers.
+    pub markers: bool,
+}
+
+/// One plot.
+#[derive(Debug, Clone)]
+pub struct Panel {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub log_x: bool,
+    pub log_y: bool,
+    pub series: Vec<Series>,
+}
+
+const PANEL_W: f64 = 460.0;
+const PANEL_H: f64 = 320.0;
+const MARGIN_L: f64 = 62.0;
+const MARGIN_R: f64 = 14.0;
+const MARGIN_T: f64 = 28.0;
+const MARGIN_B: f64 = 44.0;
+
+/// A qualitative palette (colour-blind safe, Okabe–Ito).
+pub const PALETTE: [&str; 8] = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442"];
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+struct Axis {
+    lo: f64,
+    hi: f64,
+    log: bool,
+}
+
+impl Axis {
+    fn new(values: impl Iterator<Item = f64>, log: bool) -> Axis {
+        let v: Vec<f64> = values.filter(|v| v.is_finite() && (!log || *v > 0.0)).collect();
+        let (mut lo, mut hi) = v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        if !lo.is_finite() {
+            (lo, hi) = (1.0, 10.0);
+        }
+        if log {
+            let (l, h) = (lo.log10().floor(), hi.log10().ceil());
+            // At least one decade so that a single point still gets a readable axis.
+            Axis { lo: l, hi: if h > l { h } else { l + 1.0 }, log }
+        } else {
+            let pad = if hi > lo { 0.05 * (hi - lo) } else { 0.5f64.max(lo.abs() * 0.1) };
+            Axis { lo: (lo - pad).min(if lo >= 0.0 { 0.0 } else { lo - pad }), hi: hi + pad, log }
+        }
+    }
+
+    fn t(&self, v: f64) -> Option<f64> {
+        let x = if self.log { if v > 0.0 { v.log10() } else { return None } } else { v };
+        x.is_finite().then(|| (x - self.lo) / (self.hi - self.lo))
+    }
+
+    fn ticks(&self) -> Vec<(f64, String)> {
+        if self.log {
+            (self.lo as i32..=self.hi as i32).map(|e| (10f64.powi(e), format!("1e{e}"))).collect()
+        } else {
+            (0..=4)
+                .map(|i| {
+                    let v = self.lo + (self.hi - self.lo) * f64::from(i) / 4.0;
+                    (v, format!("{v:.3}"))
+                })
+                .collect()
+        }
+    }
+}
+
+/// Renders `panels` in a grid of `columns` columns as a standalone SVG document.
+#[must_use]
+pub fn render(title: &str, panels: &[Panel], columns: usize) -> String {
+    let columns = columns.max(1);
+    let rows = panels.len().div_ceil(columns).max(1);
+    let (w, h) = (PANEL_W * columns as f64, PANEL_H * rows as f64 + 30.0);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="11">"#
+    );
+    let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+    let _ = writeln!(s, r#"<text x="{}" y="20" text-anchor="middle" font-size="14">{}</text>"#, w / 2.0, escape(title));
+    for (i, p) in panels.iter().enumerate() {
+        let ox = PANEL_W * (i % columns) as f64;
+        let oy = 30.0 + PANEL_H * (i / columns) as f64;
+        panel(&mut s, p, ox, oy);
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn panel(s: &mut String, p: &Panel, ox: f64, oy: f64) {
+    let all = || p.series.iter().flat_map(|se| se.points.iter());
+    let ax = Axis::new(all().map(|q| q.0), p.log_x);
+    let ay = Axis::new(all().map(|q| q.1), p.log_y);
+    let (x0, y0) = (ox + MARGIN_L, oy + MARGIN_T);
+    let (pw, ph) = (PANEL_W - MARGIN_L - MARGIN_R, PANEL_H - MARGIN_T - MARGIN_B);
+    let px = |v: f64| ax.t(v).map(|t| x0 + t * pw);
+    let py = |v: f64| ay.t(v).map(|t| y0 + (1.0 - t) * ph);
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" text-anchor="middle" font-size="12">{}</text>"#,
+        x0 + pw / 2.0,
+        oy + 16.0,
+        escape(&p.title)
+    );
+    let _ = writeln!(s, r##"<rect x="{x0}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##);
+    for (v, label) in ax.ticks() {
+        if let Some(x) = px(v) {
+            let _ = writeln!(s, r##"<line x1="{x}" y1="{y0}" x2="{x}" y2="{}" stroke="#ddd"/>"##, y0 + ph);
+            let _ = writeln!(s, r#"<text x="{x}" y="{}" text-anchor="middle">{label}</text>"#, y0 + ph + 14.0);
+        }
+    }
+    for (v, label) in ay.ticks() {
+        if let Some(y) = py(v) {
+            let _ = writeln!(s, r##"<line x1="{x0}" y1="{y}" x2="{}" y2="{y}" stroke="#ddd"/>"##, x0 + pw);
+            let _ = writeln!(s, r#"<text x="{}" y="{}" text-anchor="end">{label}</text>"#, x0 - 4.0, y + 4.0);
+        }
+    }
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
+        x0 + pw / 2.0,
+        y0 + ph + 32.0,
+        escape(&p.x_label)
+    );
+    let _ = writeln!(
+        s,
+        r#"<text transform="translate({},{}) rotate(-90)" text-anchor="middle">{}</text>"#,
+        ox + 14.0,
+        y0 + ph / 2.0,
+        escape(&p.y_label)
+    );
+    for (k, se) in p.series.iter().enumerate() {
+        let pts: Vec<(f64, f64)> = se.points.iter().filter_map(|&(x, y)| Some((px(x)?, py(y)?))).collect();
+        if se.line && pts.len() > 1 {
+            let d: Vec<String> = pts.iter().map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
+            let _ = writeln!(
+                s,
+                r#"<polyline points="{}" fill="none" stroke="{}" stroke-width="1.6"/>"#,
+                d.join(" "),
+                se.color
+            );
+        }
+        if se.markers {
+            for (x, y) in &pts {
+                let _ =
+                    writeln!(s, r#"<circle cx="{x:.1}" cy="{y:.1}" r="3" fill="{}" fill-opacity="0.8"/>"#, se.color);
+            }
+        }
+        // Legend, top right inside the panel.
+        let ly = y0 + 12.0 + 13.0 * k as f64;
+        let lx = x0 + pw - 150.0;
+        let _ = writeln!(s, r#"<rect x="{lx}" y="{}" width="10" height="3" fill="{}"/>"#, ly - 4.0, se.color);
+        let _ = writeln!(s, r#"<text x="{}" y="{ly}">{}</text>"#, lx + 14.0, escape(&se.name));
+    }
+}
+
+/// Indices of the points on the lower-left Pareto front of (cost, error): no other point is at most as costly
+/// and at most as wrong with one of the two strictly smaller. Sorted by cost.
+#[must_use]
+pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
+    let mut idx: Vec<usize> =
+        (0..points.len()).filter(|&i| points[i].0.is_finite() && points[i].1.is_finite()).collect();
+    idx.sort_by(|&a, &b| points[a].0.total_cmp(&points[b].0).then(points[a].1.total_cmp(&points[b].1)));
+    let mut front = Vec::new();
+    let mut best = f64::INFINITY;
+    for i in idx {
+        if points[i].1 < best {
+            best = points[i].1;
+            front.push(i);
+        }
+    }
+    front
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pareto_front_keeps_only_undominated_points() {
+        let pts = [(1.0, 5.0), (2.0, 3.0), (3.0, 4.0), (4.0, 1.0), (0.5, 9.0), (4.0, 2.0)];
+        assert_eq!(pareto_front(&pts), vec![4, 0, 1, 3]);
+    }
+
+    #[test]
+    fn svg_is_one_document_with_a_marker_per_point() {
+        let p = Panel {
+            title: "t".into(),
+            x_label: "x".into(),
+            y_label: "y".into(),
+            log_x: true,
+            log_y: true,
+            series: vec![Series {
+                name: "a<b".into(),
+                color: PALETTE[0].into(),
+                points: vec![(1.0, 0.1), (10.0, 0.01), (0.0, 1.0)],
+                line: true,
+                markers: true,
+            }],
+        };
+        let s = render("title", &[p], 1);
+        assert!(s.starts_with("<svg") && s.trim_end().ends_with("</svg>"));
+        // The point at x = 0 has no place on a log axis and is left out.
+        assert_eq!(s.matches("<circle").count(), 2);
+        assert!(s.contains("a&lt;b"));
+    }
+}

@@ -1,0 +1,147 @@
+//! Roughness of one object by a 1-D search on its profile loss (issue 7).
+//!
+//! For a fixed roughness r, an object's own pixels are (to first order, the light it sends back to itself
+//! through other surfaces aside) linear in its base colour and its specular strength: the diffuse lobe is
+//! ρ·(1 − F)/π and the specular lobe is linear in F0 = 0.08·s. So the profile loss
+//! `P(r) = min over (ρ, s) of the L1 residual on the object's pixels` is cheap: one value render at r, one
+//! Jacobian pass for (ρ_rgb, s), and a 4-variable box-constrained IRLS solve. `P` is searched on a coarse grid
+//! and refined by golden-section search, every evaluation with the same random numbers (common random
+//! numbers: the Monte Carlo noise of P(r) is then a smooth function of r instead of independent jitter, so the
+//! search does not chase it).
+//!
+//! Why not Gauss–Newton on roughness with the other unknowns (what the fit did first): measured on the glossy
+//! fixture, 4 coupled steps from r = 0.5 with a ±0.1 trust region ended at 0.20 for a true 0.4 and 0.33 for a
+//! true 0.25 — the GGX lobe is far from linear in r, and the per-pixel roughness gradient of a 128-path
+//! Jacobian is noisy enough that the steps wander inside the trust region.
+
+use super::jacobian::{self, Ctx};
+use super::layout::{self, BASE_COLOR, ROUGHNESS, SPECULAR, idx};
+use super::linear::{self, DataLoss, Problem};
+use super::pixels::Sample;
+use tracer::{PixelRef, TracerError};
+
+/// Coarse grid of the search: spans the domain with finer steps at low roughness, where the lobe changes
+/// fastest (its width is α = r²).
+pub const GRID: [f64; 7] = [0.04, 0.12, 0.22, 0.33, 0.45, 0.62, 0.85];
+/// Golden-section steps inside the bracket around the best grid point: the bracket (at most 0.4 wide) shrinks
+/// by 0.618 per step, to < 0.023 after 6 steps, so the chosen point is within ~0.012 of the bracket's
+/// minimum — well below the 0.05 tolerance issue 7 asks for.
+pub const GOLDEN_STEPS: usize = 6;
+/// The golden-section refinement is skipped when the profile loss varies over the grid by less than this
+/// fraction of the mean |target| of the object's pixels: roughness then does not matter to the photos (a
+/// diffuse wall's best lobe is weak, its grid spread measured at 0.1–0.3 %; the glossy fixture's floor and
+/// box spread 5–20 %), and the lobe, if any, is judged at the best grid point. Halves the search's cost.
+pub const FLAT_PROFILE: f64 = 0.005;
+/// IRLS rounds of the 4-variable solve (converges in a handful).
+const IRLS_ITERS: usize = 12;
+
+/// The result of one profile evaluation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProfilePoint {
+    pub roughness: f64,
+    /// Mean per-channel L1 residual on the object's pixels after the best (ρ, s) for this roughness.
+    pub loss: f64,
+    pub base_color: [f64; 3],
+    pub specular: f64,
+}
+
+/// Evaluates the profile loss of object `k` at roughness `r`, linearising around the base colour and
+/// specular of `x` (other objects as in `x`). `samples` are pixels whose centre sees object k.
+pub fn profile(
+    ctx: &Ctx<'_>,
+    x: &[f64],
+    k: usize,
+    r: f64,
+    samples: &[Sample],
+    spp: u32,
+    key: u64,
+) -> Result<ProfilePoint, TracerError> {
+    let mut xr = x.to_vec();
+    xr[idx(k, ROUGHNESS)] = r;
+    let params = layout::to_params(&xr);
+    let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
+    let values = tracer::render_pixels(ctx.scene, &params, ctx.cameras, &pixels, spp, ctx.settings, ctx.seed, key)?;
+    // Independent random numbers for the Jacobian (the value and its slope must not share noise).
+    let rows = jacobian::channel_rows(ctx, &params, &pixels, spp, key ^ (1 << 30))?;
+    let m = samples.len();
+    // Unknowns: ρ_r, ρ_g, ρ_b, s. Rows (pixel j, channel c) at 3j + c.
+    let v0 = [x[idx(k, BASE_COLOR)], x[idx(k, BASE_COLOR + 1)], x[idx(k, BASE_COLOR + 2)], x[idx(k, SPECULAR)]];
+    let mut cols = vec![vec![0.0; 3 * m]; 4];
+    let mut target = vec![0.0; 3 * m];
+    for j in 0..m {
+        for c in 0..3 {
+            let row = rows[j][c][k];
+            cols[c][3 * j + c] = row[0];
+            cols[3][3 * j + c] = row[2];
+            // I(v) ≈ I(v0) + J (v − v0)  ⇒  fit J v to t − I(v0) + J v0.
+            target[3 * j + c] =
+                f64::from(samples[j].target[c]) - f64::from(values[j][c]) + row[0] * v0[c] + row[2] * v0[3];
+        }
+    }
+    let zeros = [0.0; 4];
+    let mut v = v0.to_vec();
+    let problem = Problem {
+        cols: &cols,
+        target: &target,
+        second: None,
+        penalty: &zeros,
+        prox: &zeros,
+        anchor: &zeros,
+        lo: &zeros,
+        hi: &[1.0; 4],
+    };
+    linear::solve(&problem, DataLoss::L1, &mut v, IRLS_ITERS);
+    let loss = (0..3 * m).map(|i| (target[i] - (0..4).map(|u| cols[u][i] * v[u]).sum::<f64>()).abs()).sum::<f64>()
+        / (3 * m.max(1)) as f64;
+    Ok(ProfilePoint { roughness: r, loss, base_color: [v[0], v[1], v[2]], specular: v[3] })
+}
+
+/// Minimises the profile loss of object `k` over roughness: the coarse [`GRID`], then golden-section search
+/// between the neighbours of its best point. Returns the best point and every evaluation (for the record).
+pub fn search(
+    ctx: &Ctx<'_>,
+    x: &[f64],
+    k: usize,
+    samples: &[Sample],
+    spp: u32,
+    key: u64,
+) -> Result<(ProfilePoint, Vec<ProfilePoint>), TracerError> {
+    let mut evals = Vec::new();
+    let eval = |r: f64, evals: &mut Vec<ProfilePoint>| -> Result<ProfilePoint, TracerError> {
+        let p = profile(ctx, x, k, r, samples, spp, key)?;
+        evals.push(p);
+        Ok(p)
+    };
+    let grid: Vec<ProfilePoint> = GRID.iter().map(|&r| eval(r, &mut evals)).collect::<Result<_, _>>()?;
+    let best = (0..grid.len()).min_by(|&a, &b| grid[a].loss.total_cmp(&grid[b].loss)).unwrap_or(0);
+    let worst = grid.iter().map(|p| p.loss).fold(0.0, f64::max);
+    let mean_target = samples.iter().map(|t| f64::from(t.target.abs().element_sum()) / 3.0).sum::<f64>()
+        / samples.len().max(1) as f64;
+    if worst - grid[best].loss < FLAT_PROFILE * mean_target {
+        return Ok((grid[best], evals));
+    }
+    let mut lo = if best == 0 { 0.0 } else { GRID[best - 1] };
+    let mut hi = if best + 1 == GRID.len() { 1.0 } else { GRID[best + 1] };
+    const INV_PHI: f64 = 0.618_033_988_749_894_9;
+    let mut a = hi - INV_PHI * (hi - lo);
+    let mut b = lo + INV_PHI * (hi - lo);
+    let mut pa = eval(a, &mut evals)?;
+    let mut pb = eval(b, &mut evals)?;
+    for _ in 0..GOLDEN_STEPS {
+        if pa.loss <= pb.loss {
+            hi = b;
+            b = a;
+            pb = pa;
+            a = hi - INV_PHI * (hi - lo);
+            pa = eval(a, &mut evals)?;
+        } else {
+            lo = a;
+            a = b;
+            pa = pb;
+            b = lo + INV_PHI * (hi - lo);
+            pb = eval(b, &mut evals)?;
+        }
+    }
+    let best = evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss)).unwrap_or(grid[0]);
+    Ok((best, evals))
+}

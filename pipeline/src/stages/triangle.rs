@@ -1,0 +1,155 @@
+//! The `triangle` stage: per-triangle fit with adaptive subdivision ([`crate::triangle`]) starting from the
+//! `object` stage's result.
+//!
+//! Artefacts in `output.path/triangle/`:
+//! - `result.json` — `{"format": "ipt-triangle/1", "state": TriangleState}`: the (subdivided) mesh, per-triangle
+//!   materials, per-object emission and the log of every round. Not written when `triangle.enabled = false`
+//!   (an old one is removed, so `export` falls back to the per-object result).
+//! - `checkpoint.json` while the stage runs — `{"format": "ipt-triangle-checkpoint/1", "config_sha256",
+//!   "inputs_sha256", "state"}` after every round that ended with a split; a rerun with the same hashes
+//!   resumes from it.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::StageError;
+use super::ingest::Ingested;
+use super::object_result::{MATERIALS_FILE, read_result as read_object_result};
+use super::preprocess::Prepared;
+use crate::atomic_file::write_json_atomic;
+use crate::runner::StageContext;
+use crate::triangle::{RESULT_FORMAT, RoundInputs, TriangleError, TriangleState};
+
+/// The result's file name.
+pub const RESULT_FILE: &str = "result.json";
+/// The checkpoint's file name.
+pub const CHECKPOINT_FILE: &str = "checkpoint.json";
+/// Format tag of the checkpoint.
+pub const CHECKPOINT_FORMAT: &str = "ipt-triangle-checkpoint/1";
+
+/// `result.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ResultFile {
+    pub format: String,
+    pub state: TriangleState,
+}
+
+/// `checkpoint.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Checkpoint {
+    pub format: String,
+    pub config_sha256: String,
+    pub inputs_sha256: String,
+    pub state: TriangleState,
+}
+
+/// Reads `run_dir/triangle/result.json`; `Ok(None)` when the stage wrote none (disabled or not run).
+pub fn read_result(run_dir: &Path) -> Result<Option<TriangleState>, StageError> {
+    let path = run_dir.join("triangle").join(RESULT_FILE);
+    let text = match std::fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => return Err(StageError::Io { path, source }),
+    };
+    let r: ResultFile =
+        serde_json::from_str(&text).map_err(|e| StageError::Artefact { path: path.clone(), message: e.to_string() })?;
+    if r.format != RESULT_FORMAT {
+        return Err(StageError::Artefact { path, message: format!("format `{}` is not `{RESULT_FORMAT}`", r.format) });
+    }
+    Ok(Some(r.state))
+}
+
+fn resumable(dir: &Path, config_sha256: &str, inputs_sha256: &str) -> Option<TriangleState> {
+    let path = dir.join(CHECKPOINT_FILE);
+    let text = std::fs::read_to_string(&path).ok()?;
+    let cp: Checkpoint = match serde_json::from_str(&text) {
+        Ok(cp) => cp,
+        Err(e) => {
+            tracing::warn!("{}: unreadable checkpoint ignored: {e}", path.display());
+            return None;
+        }
+    };
+    if cp.format != CHECKPOINT_FORMAT || cp.config_sha256 != config_sha256 || cp.inputs_sha256 != inputs_sha256 {
+        eprintln!("[triangle] checkpoint belongs to another config or other inputs; starting afresh");
+        return None;
+    }
+    Some(cp.state)
+}
+
+fn remove_if_present(path: PathBuf) -> Result<(), StageError> {
+    match std::fs::remove_file(&path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(StageError::Io { path, source: e }),
+        _ => Ok(()),
+    }
+}
+
+/// Runs the stage.
+pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
+    let plan = ctx.plan;
+    if !plan.triangle.enabled {
+        remove_if_present(ctx.dir.join(RESULT_FILE))?;
+        remove_if_present(ctx.dir.join(CHECKPOINT_FILE))?;
+        eprintln!("[triangle] disabled (triangle.enabled = false); export uses the per-object result");
+        return Ok(Vec::new());
+    }
+    let scene_data = Ingested::read(&plan.output)?;
+    let prepared = Prepared::read(&plan.output)?;
+    let materials = read_object_result(&plan.output)?;
+    let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
+    let params = materials.params_for(&ids, &plan.output.join("object").join(MATERIALS_FILE))?;
+    let specular: Vec<bool> =
+        ids.iter().map(|id| materials.objects.iter().any(|o| o.id == *id && o.model.contains("specular"))).collect();
+    let cameras = prepared.tracer_cameras();
+    let settings = plan.tracer.settings();
+    let inputs = RoundInputs {
+        cameras: &cameras,
+        images: &prepared.images,
+        config: &plan.triangle,
+        object: &plan.object,
+        tracer: &settings,
+        specular: &specular,
+    };
+    let state = match resumable(&ctx.dir, &ctx.config_sha256, &ctx.inputs_sha256) {
+        Some(s) => {
+            eprintln!("[triangle] resuming from the checkpoint after round {}", s.rounds_done);
+            s
+        }
+        None => TriangleState::from_objects(
+            scene_data.positions.clone(),
+            scene_data.normals.clone(),
+            scene_data.triangles.clone(),
+            scene_data.face_object.clone(),
+            &params,
+        )
+        .map_err(triangle_err)?,
+    };
+    let before = scene_data.triangles.len();
+    let checkpoint_path = ctx.dir.join(CHECKPOINT_FILE);
+    let mut on_round = |s: &TriangleState| -> Result<(), TriangleError> {
+        let cp = Checkpoint {
+            format: CHECKPOINT_FORMAT.into(),
+            config_sha256: ctx.config_sha256.clone(),
+            inputs_sha256: ctx.inputs_sha256.clone(),
+            state: s.clone(),
+        };
+        write_json_atomic(&checkpoint_path, &cp).map_err(|e| TriangleError::Checkpoint(e.to_string()))
+    };
+    let bar = indicatif::ProgressBar::new(u64::from(plan.triangle.rounds) + 1);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("[triangle] {bar:40} round {pos}/{len} {msg} ({elapsed})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let state = crate::triangle::run_rounds(&inputs, state, &mut on_round, &bar).map_err(triangle_err)?;
+    bar.finish_and_clear();
+    write_json_atomic(&ctx.dir.join(RESULT_FILE), &ResultFile { format: RESULT_FORMAT.into(), state: state.clone() })?;
+    remove_if_present(checkpoint_path)?;
+    eprintln!("[triangle] {before} → {} triangles", state.triangles.len());
+    Ok(vec![PathBuf::from("triangle").join(RESULT_FILE)])
+}
+
+fn triangle_err(e: TriangleError) -> StageError {
+    StageError::Triangle(e)
+}

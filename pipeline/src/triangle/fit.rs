@@ -1,0 +1,293 @@
+//! One round's fit of the per-triangle parameters on a fixed mesh: closed-form ratio steps with the
+//! smoothness regulariser, then (optionally) Adam. See the module docs of [`crate::triangle`].
+
+use std::collections::HashMap;
+
+use glam::{DVec3, Vec3};
+use tracer::PixelRef;
+
+use super::pixels::TriSample;
+use super::{RoundInputs, TriangleError, TriangleState};
+use crate::fit::adam::{AdamConfig, AdamState};
+use crate::fit::pixels::uniform;
+
+/// A triangle's closed-form update uses only its interior pixels (footprint wholly on it) when it has at least
+/// this many: they depend on its own value alone. With fewer (small or grazing triangles) all its pixels are
+/// used; the Jacobi iteration then settles the pixels shared with neighbours.
+const MIN_INTERIOR: usize = 4;
+
+/// Gauss–Seidel sweeps of the smoothness solve. Observed triangles settle in a few sweeps (their data weight
+/// dominates); 64 sweeps carry a neighbour's value across ~8 unobserved triangles, beyond which a region keeps
+/// its starting (object) value — the intended fallback.
+const SMOOTH_SWEEPS: usize = 64;
+
+/// Stream of the Adam batch draws ([`uniform`]), apart from the object stage's streams 1–3.
+const STREAM_BATCH: u64 = 0x7269;
+
+/// The key of the tracer's `iteration` argument for (round, step): distinct for every render of the stage
+/// and disjoint from the object stage's keys (< 4·2^32).
+#[must_use]
+pub fn render_key(round: u32, step: u32) -> u64 {
+    (16u64 << 32) | (u64::from(round) << 20) | u64::from(step)
+}
+
+/// What a round's fit leaves for the split test.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fitted {
+    /// Mean per-channel |photo − render| over the fitted pixels, per step (before its update).
+    pub loss: Vec<f64>,
+    /// Per sample: photo − predicted render after the last update.
+    pub residual: Vec<Vec3>,
+    /// Per triangle: its parameters were fitted (its object does not emit).
+    pub free: Vec<bool>,
+}
+
+/// Pairs of triangles of one object that share an edge (edges identified by vertex position, as in
+/// [`crate::subdivide`]); per triangle, its neighbours.
+#[must_use]
+pub fn neighbours(state: &TriangleState) -> Vec<Vec<u32>> {
+    let key = |v: u32| state.positions[v as usize].to_array().map(|x| if x == 0.0 { 0 } else { x.to_bits() });
+    let mut edges: HashMap<([u32; 3], [u32; 3]), Vec<u32>> = HashMap::new();
+    for (t, tri) in state.triangles.iter().enumerate() {
+        for e in 0..3 {
+            let (a, b) = (key(tri[e]), key(tri[(e + 1) % 3]));
+            let k = if a <= b { (a, b) } else { (b, a) };
+            edges.entry(k).or_default().push(t as u32);
+        }
+    }
+    let mut out = vec![Vec::new(); state.triangles.len()];
+    let mut keys: Vec<_> = edges.into_iter().collect();
+    keys.sort_unstable_by_key(|k| k.0); // deterministic neighbour order
+    for (_, tris) in keys {
+        for (i, &t) in tris.iter().enumerate() {
+            for &u in &tris[i + 1..] {
+                if state.face_object[t as usize] == state.face_object[u as usize] && t != u {
+                    out[t as usize].push(u);
+                    out[u as usize].push(t);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `min Σ_t n_t (ρ_t − r_t)² + λ Σ_(t,u) (ρ_t − ρ_u)²` over the free triangles by Gauss–Seidel, from `rho`
+/// (updated in place). Triangles with neither data nor free neighbours keep their value.
+pub fn smooth_solve(rho: &mut [Vec3], ratio: &[Vec3], weight: &[f64], nbrs: &[Vec<u32>], free: &[bool], lambda: f64) {
+    for _ in 0..SMOOTH_SWEEPS {
+        for t in 0..rho.len() {
+            if !free[t] {
+                continue;
+            }
+            let mut num = ratio[t].as_dvec3() * weight[t];
+            let mut den = weight[t];
+            for &u in &nbrs[t] {
+                num += rho[u as usize].as_dvec3() * lambda;
+                den += lambda;
+            }
+            if den > 0.0 {
+                rho[t] = (num / den).as_vec3().clamp(Vec3::ZERO, Vec3::ONE);
+            }
+        }
+    }
+}
+
+/// Runs the fit of one round on `state` (updated in place).
+pub fn fit_round(
+    inputs: &RoundInputs<'_>,
+    scene: &tracer::Scene,
+    samples: &[TriSample],
+    state: &mut TriangleState,
+    round: u32,
+) -> Result<Fitted, TriangleError> {
+    let cfg = inputs.config;
+    let n = state.triangles.len();
+    // Emitting objects keep their per-object values (emission and materials are entangled there).
+    let emits: Vec<bool> = state.emission.iter().map(|e| e.max_element() > 0.0).collect();
+    let free: Vec<bool> = state.face_object.iter().map(|&o| !emits[o as usize]).collect();
+    let nbrs = neighbours(state);
+    let mut interior = vec![0usize; n];
+    for s in samples {
+        interior[s.tri as usize] += usize::from(s.interior);
+    }
+    let used = |s: &TriSample| s.interior || interior[s.tri as usize] < MIN_INTERIOR;
+    let pix: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
+    let mut loss = Vec::new();
+    let mut residual = vec![Vec3::ZERO; samples.len()];
+    for step in 0..cfg.fit_steps.max(1) {
+        let params = state.params();
+        let values = tracer::render_pixels(
+            scene,
+            &params,
+            inputs.cameras,
+            &pix,
+            cfg.spp,
+            inputs.tracer,
+            cfg.seed,
+            render_key(round, step),
+        )?;
+        let mut t_sum = vec![DVec3::ZERO; n];
+        let mut r_sum = vec![DVec3::ZERO; n];
+        let mut count = vec![0f64; n];
+        let mut l = 0.0;
+        for (s, v) in samples.iter().zip(&values) {
+            l += f64::from((*v - s.target).abs().element_sum()) / 3.0;
+            if used(s) {
+                let t = s.tri as usize;
+                t_sum[t] += s.target.as_dvec3();
+                r_sum[t] += v.as_dvec3();
+                count[t] += 1.0;
+            }
+        }
+        loss.push(l / samples.len().max(1) as f64);
+        let old: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
+        let mut rho = old.clone();
+        if cfg.fit_steps > 0 {
+            let ratio: Vec<Vec3> = (0..n)
+                .map(|t| {
+                    let r = r_sum[t];
+                    let q = |c: usize| if r[c] > 0.0 { t_sum[t][c] / r[c] } else { 1.0 };
+                    (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
+                })
+                .collect();
+            smooth_solve(&mut rho, &ratio, &count, &nbrs, &free, cfg.smoothness);
+            for (m, r) in state.materials.iter_mut().zip(&rho) {
+                m.base_color = *r;
+            }
+        }
+        // Residuals against the render predicted for the updated values: a pixel's radiance is linear in the
+        // base colour of the triangle its centre sees (exactly so for an interior pixel of a diffuse one).
+        for (j, (s, v)) in samples.iter().zip(&values).enumerate() {
+            let t = s.tri as usize;
+            let scale =
+                Vec3::select(old[t].cmpgt(Vec3::ZERO), rho[t] / old[t].max(Vec3::splat(f32::MIN_POSITIVE)), Vec3::ONE);
+            residual[j] = s.target - *v * scale;
+        }
+    }
+    if cfg.adam_iterations > 0 {
+        adam(inputs, scene, samples, state, &free, &nbrs, round)?;
+    }
+    Ok(Fitted { loss, residual, free })
+}
+
+/// Adam on the per-triangle base colours (and roughness/metallic of specular objects): batches of
+/// `object.batch_pixels` pixels drawn uniformly, `object.n_value` value and `object.n_grad` gradient paths,
+/// the object stage's loss weight, plus the smoothness term `λ/N Σ_(t,u) |ρ_t − ρ_u|²` (N = fitted pixels,
+/// the scale at which λ counts pixels of evidence), clamped to [0, 1].
+fn adam(
+    inputs: &RoundInputs<'_>,
+    scene: &tracer::Scene,
+    samples: &[TriSample],
+    state: &mut TriangleState,
+    free: &[bool],
+    nbrs: &[Vec<u32>],
+    round: u32,
+) -> Result<(), TriangleError> {
+    let cfg = inputs.config;
+    let s = inputs.object;
+    let n = state.triangles.len();
+    // 5 parameters per triangle: base colour RGB, roughness, metallic.
+    let mut x: Vec<f64> = state
+        .materials
+        .iter()
+        .flat_map(|m| [m.base_color.x, m.base_color.y, m.base_color.z, m.roughness, m.metallic].map(f64::from))
+        .collect();
+    let mut lr = vec![0.0; 5 * n];
+    for t in (0..n).filter(|&t| free[t]) {
+        let spec = inputs.specular.get(state.face_object[t] as usize).copied().unwrap_or(false);
+        for p in 0..if spec { 5 } else { 3 } {
+            lr[5 * t + p] = cfg.adam_lr;
+        }
+    }
+    let (lo, hi) = (vec![0.0; 5 * n], vec![1.0; 5 * n]);
+    let mut st = AdamState::new(5 * n, AdamConfig::default());
+    let pool: Vec<&TriSample> = samples.iter().filter(|p| free[p.tri as usize]).collect();
+    if pool.is_empty() {
+        return Ok(());
+    }
+    let b = s.batch_pixels.max(1) as usize;
+    let lambda = cfg.smoothness / pool.len() as f64;
+    for it in 0..cfg.adam_iterations {
+        let key = render_key(round, 1 << 16 | it);
+        let batch: Vec<&TriSample> = (0..b as u64)
+            .map(|i| {
+                let u = uniform(cfg.seed, STREAM_BATCH, key, i);
+                pool[((u * pool.len() as f64) as usize).min(pool.len() - 1)]
+            })
+            .collect();
+        let pix: Vec<PixelRef> = batch.iter().map(|p| p.pixel).collect();
+        let params = state.params();
+        let values =
+            tracer::render_pixels(scene, &params, inputs.cameras, &pix, s.n_value, inputs.tracer, cfg.seed, key)?;
+        let weights: Vec<Vec3> = values
+            .iter()
+            .zip(&batch)
+            .map(|(v, p)| crate::fit::object::loss_weight(s, *v - p.target, p.target) / b as f32)
+            .collect();
+        let g = tracer::gradient_pixels(
+            scene,
+            &params,
+            inputs.cameras,
+            &pix,
+            &weights,
+            s.n_grad,
+            inputs.tracer,
+            cfg.seed,
+            key,
+        )?;
+        let mut grad = vec![0.0; 5 * n];
+        for t in 0..n {
+            let m = &g.materials[t];
+            grad[5 * t..5 * t + 5].copy_from_slice(&[
+                m.base_color.x,
+                m.base_color.y,
+                m.base_color.z,
+                m.roughness,
+                m.metallic,
+            ]);
+            for &u in &nbrs[t] {
+                for c in 0..3 {
+                    grad[5 * t + c] += 2.0 * lambda * (x[5 * t + c] - x[5 * u as usize + c]);
+                }
+            }
+        }
+        if !grad.iter().all(|v| v.is_finite()) {
+            return Err(TriangleError::Input(format!("non-finite gradient in round {round}, Adam iteration {it}")));
+        }
+        st.step(&mut x, &grad, &lr, &lo, &hi);
+        for (t, m) in state.materials.iter_mut().enumerate() {
+            m.base_color = Vec3::new(x[5 * t] as f32, x[5 * t + 1] as f32, x[5 * t + 2] as f32);
+            m.roughness = x[5 * t + 3] as f32;
+            m.metallic = x[5 * t + 4] as f32;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn smoothing_fills_an_unobserved_triangle_with_its_neighbours_mean_and_keeps_isolated_ones() {
+        // Chain 0 - 1 - 2 (1 unobserved) and 3 alone (unobserved).
+        let nbrs = vec![vec![1], vec![0, 2], vec![1], vec![]];
+        let ratio = vec![Vec3::splat(0.2), Vec3::ZERO, Vec3::splat(0.6), Vec3::ZERO];
+        let weight = [100.0, 0.0, 100.0, 0.0];
+        let mut rho = vec![Vec3::splat(0.5); 4];
+        smooth_solve(&mut rho, &ratio, &weight, &nbrs, &[true; 4], 1.0);
+        assert!((rho[1].x - 0.4).abs() < 1e-3, "{rho:?}");
+        assert_eq!(rho[3], Vec3::splat(0.5));
+        // Observed triangles move only slightly towards their neighbour (weight 100 vs 1).
+        assert!((rho[0].x - 0.2).abs() < 0.01, "{rho:?}");
+    }
+
+    #[test]
+    fn render_keys_are_distinct_per_round_and_step() {
+        let mut keys: Vec<u64> = (0..4).flat_map(|r| (0..8).map(move |s| render_key(r, s))).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        assert_eq!(keys.len(), 32);
+        assert!(render_key(0, 0) > 4 << 32);
+    }
+}
