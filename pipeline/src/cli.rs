@@ -68,6 +68,9 @@ pub struct BenchTradeoffArgs {
     /// A tiny sweep (smoke test): two points per scene at minimal settings.
     #[arg(long)]
     pub quick: bool,
+    /// Run only the sweep points with these labels (comma-separated, e.g. `default,corner:fast`).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
     /// Do not run: rebuild the SVG and markdown from the CSV already in `--out`.
     #[arg(long)]
     pub replot: bool,

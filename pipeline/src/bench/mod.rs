@@ -120,6 +120,7 @@ pub fn run_command(what: crate::cli::BenchCommand) -> Result<(), BenchError> {
                 scenes: a.scenes,
                 out: a.out.clone(),
                 quick: a.quick,
+                only: a.only,
             };
             if a.replot {
                 tradeoff::replot(&opts)?;

@@ -28,6 +28,8 @@ pub struct TradeoffOptions {
     pub scenes: Vec<String>,
     pub out: PathBuf,
     pub quick: bool,
+    /// Run only the points with these labels (empty = the whole sweep).
+    pub only: Vec<String>,
 }
 
 /// One point of the sweep.
@@ -155,6 +157,8 @@ pub fn corners(base: &FitSetup) -> Vec<SweepPoint> {
         mk("corner:fast", 25, 32, 256, 64, 4, false, Some(4), 2, 64),
         mk("corner:fast-full-res", 25, 32, 256, 64, 4, true, None, 1, 128),
         mk("corner:mid", 50, 128, 512, 128, 8, true, None, 1, 256),
+        mk("corner:fast-depth8", 25, 32, 256, 64, 4, false, None, 2, 64),
+        mk("corner:mid-ds2", 50, 128, 512, 128, 8, true, None, 2, 128),
     ]
 }
 
@@ -217,7 +221,14 @@ pub fn run(opts: &TradeoffOptions) -> Result<Vec<Row>, BenchError> {
         let base = base_setup(&scene);
         let first = rows.len();
         for point in sweep_points(&base, opts.quick) {
-            if !opts.quick && scene.name != "demo" && !SECONDARY_SCENE_POINTS.contains(&point.label.as_str()) {
+            if !opts.only.is_empty() && !opts.only.contains(&point.label) {
+                continue;
+            }
+            if !opts.quick
+                && opts.only.is_empty()
+                && scene.name != "demo"
+                && !SECONDARY_SCENE_POINTS.contains(&point.label.as_str())
+            {
                 continue;
             }
             if !scenes::divisible(&scene, point.setup.downscale) {

@@ -92,6 +92,91 @@ pub fn smooth_solve(rho: &mut [Vec3], ratio: &[Vec3], weight: &[f64], nbrs: &[Ve
     }
 }
 
+/// Shrink every triangle's estimate towards its object's pooled value ([`shrink_to_object`]) before the
+/// smoothness solve. Measured in the module docs of [`crate::triangle`].
+const SHRINK: bool = true;
+
+/// One fit step's evidence per triangle, over the pixels its update uses: the current base colour, the sums of
+/// photo and render values, of squared differences (photo − render)², and the pixel count.
+#[derive(Debug, Clone, Copy)]
+pub struct Evidence<'a> {
+    pub old: &'a [Vec3],
+    pub t_sum: &'a [DVec3],
+    pub r_sum: &'a [DVec3],
+    pub d_sq: &'a [DVec3],
+    pub count: &'a [f64],
+}
+
+impl Evidence<'_> {
+    /// Sampling variance (per channel) of triangle `t`'s ratio estimate `ρ·T/R`, or `None` with fewer than 2
+    /// pixels or no rendered radiance. The pixel differences photo − render scatter by the photo's and the
+    /// render's Monte Carlo noise (plus any texture inside the triangle); their variance s² over the n pixels
+    /// gives Var(T − R) = n·s², and ρ·T/R − ρ = ρ·(T − R)/R, so Var = ρ²·n·s²/R².
+    #[must_use]
+    pub fn ratio_variance(&self, t: usize) -> Option<DVec3> {
+        let n = self.count[t];
+        if n < 2.0 || self.r_sum[t].min_element() <= 0.0 {
+            return None;
+        }
+        let mean_d = (self.t_sum[t] - self.r_sum[t]) / n;
+        let s2 = (self.d_sq[t] - mean_d * mean_d * n) / (n - 1.0);
+        let rho = self.old[t].as_dvec3();
+        Some(rho * rho * n * s2.max(DVec3::ZERO) / (self.r_sum[t] * self.r_sum[t]))
+    }
+}
+
+/// Empirical-Bayes (James–Stein) shrinkage of the per-triangle estimates `ratio` towards their object's pooled
+/// value: per object and channel, the prior mean m = ΣT / Σ(R/ρ) is the object-level ratio update over all its
+/// observed triangles' pixels (one ratio of two large sums: the per-triangle ratio T_t/R_t has the noise of a
+/// few dozen pixels' renders in its denominator, which biases it upwards — E[1/R] > 1/E[R] — far more), the
+/// estimates r_t have sampling variances v_t ([`Evidence::ratio_variance`]), and the spread of the true values
+/// τ² = max(0, mean_t[(r_t − m)² − v_t]) is what the estimates scatter beyond their noise. Each estimate becomes
+/// m + τ²/(τ² + v_t)·(r_t − m): on a uniform object (scatter explained by noise, τ² ≈ 0) every triangle keeps
+/// the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen in a single pixel has
+/// no measurable noise, hence no significant evidence: it takes m. Unobserved triangles (left to the
+/// smoothness solve), those of emitting objects, and objects with fewer than 2 triangles seen in ≥ 2 pixels
+/// are unchanged.
+#[must_use]
+pub fn shrink_to_object(ratio: &[Vec3], ev: &Evidence<'_>, face_object: &[u32], free: &[bool], objects: usize) -> Vec<Vec3> {
+    let var: Vec<Option<DVec3>> = (0..ratio.len()).map(|t| if free[t] { ev.ratio_variance(t) } else { None }).collect();
+    // Per object and channel: Σ T and Σ R/ρ (the render per unit albedo) over its observed triangles.
+    let mut pooled = vec![(DVec3::ZERO, DVec3::ZERO, 0usize); objects];
+    for (t, v) in var.iter().enumerate() {
+        if v.is_none() || ev.old[t].min_element() <= 0.0 {
+            continue;
+        }
+        let o = &mut pooled[face_object[t] as usize];
+        o.0 += ev.t_sum[t];
+        o.1 += ev.r_sum[t] / ev.old[t].as_dvec3();
+        o.2 += 1;
+    }
+    let mean: Vec<Option<DVec3>> = pooled
+        .iter()
+        .map(|(t, r, k)| (*k >= 2 && r.min_element() > 0.0).then(|| (*t / *r).clamp(DVec3::ZERO, DVec3::ONE)))
+        .collect();
+    let mut excess = vec![(DVec3::ZERO, 0usize); objects];
+    for (t, v) in var.iter().enumerate() {
+        let (Some(v), Some(m)) = (v, mean[face_object[t] as usize]) else { continue };
+        let d = ratio[t].as_dvec3() - m;
+        let e = &mut excess[face_object[t] as usize];
+        e.0 += d * d - *v;
+        e.1 += 1;
+    }
+    let tau2: Vec<DVec3> = excess.iter().map(|(s, k)| (*s / (*k).max(1) as f64).max(DVec3::ZERO)).collect();
+    (0..ratio.len())
+        .map(|t| {
+            let o = face_object[t] as usize;
+            let Some(m) = mean[o].filter(|_| free[t]) else { return ratio[t] };
+            // Observed in fewer than 2 pixels: no measurable evidence of a difference, so the object's value.
+            let Some(v) = var[t] else {
+                return if ev.count[t] > 0.0 { m.as_vec3() } else { ratio[t] };
+            };
+            let keep = tau2[o] / (tau2[o] + v).max(DVec3::splat(f64::MIN_POSITIVE));
+            (m + keep * (ratio[t].as_dvec3() - m)).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
+        })
+        .collect()
+}
+
 /// Runs the fit of one round on `state` (updated in place).
 pub fn fit_round(
     inputs: &RoundInputs<'_>,
@@ -128,14 +213,17 @@ pub fn fit_round(
         )?;
         let mut t_sum = vec![DVec3::ZERO; n];
         let mut r_sum = vec![DVec3::ZERO; n];
+        let mut d_sq = vec![DVec3::ZERO; n];
         let mut count = vec![0f64; n];
         let mut l = 0.0;
         for (s, v) in samples.iter().zip(&values) {
             l += f64::from((*v - s.target).abs().element_sum()) / 3.0;
             if used(s) {
                 let t = s.tri as usize;
+                let d = (s.target - *v).as_dvec3();
                 t_sum[t] += s.target.as_dvec3();
                 r_sum[t] += v.as_dvec3();
+                d_sq[t] += d * d;
                 count[t] += 1.0;
             }
         }
@@ -150,6 +238,12 @@ pub fn fit_round(
                     (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
                 })
                 .collect();
+            let ratio = if SHRINK {
+                let evidence = Evidence { old: &old, t_sum: &t_sum, r_sum: &r_sum, d_sq: &d_sq, count: &count };
+                shrink_to_object(&ratio, &evidence, &state.face_object, &free, state.emission.len())
+            } else {
+                ratio
+            };
             smooth_solve(&mut rho, &ratio, &count, &nbrs, &free, cfg.smoothness);
             for (m, r) in state.materials.iter_mut().zip(&rho) {
                 m.base_color = *r;
