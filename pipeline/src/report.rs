@@ -44,6 +44,17 @@ pub struct ReportData {
     pub why: Vec<String>,
     /// Free text lines shown under the title (settings, timings).
     pub notes: Vec<String>,
+    /// The per-triangle stage's summary, when it ran.
+    pub triangle: Option<TriangleSection>,
+}
+
+/// The "Per-triangle stage" section: triangle counts per object and the exported albedo atlas.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriangleSection {
+    /// Per object: (id, label, triangles in the scan's mesh, triangles after the stage).
+    pub counts: Vec<(i64, String, usize, usize)>,
+    /// `export/albedo.png` (sRGB 8-bit PNG bytes), when export wrote one; shown inline.
+    pub atlas_png: Option<Vec<u8>>,
 }
 
 /// Standard base64 (RFC 4648 §4, with padding).
@@ -286,6 +297,31 @@ pub fn html(data: &ReportData) -> String {
     }
     s.push_str("</table>\n");
 
+    if let Some(t) = &data.triangle {
+        s.push_str(
+            "<h2>Per-triangle stage</h2>\n<p>Triangles per object before (scan mesh) and after adaptive \
+             subdivision; a uniform object keeps its count and its value.</p>\n\
+             <table><tr><th>id</th><th>label</th><th>before</th><th>after</th></tr>\n",
+        );
+        for (id, label, before, after) in &t.counts {
+            let _ = writeln!(
+                s,
+                "<tr><td>{id}</td><td class=\"l\">{}</td><td>{before}</td><td>{after}</td></tr>",
+                escape(label)
+            );
+        }
+        s.push_str("</table>\n");
+        if let Some(png) = &t.atlas_png {
+            let _ = writeln!(
+                s,
+                "<figure><figcaption>Albedo atlas (export/albedo.png, one padded patch per triangle)</figcaption>\
+                 <img alt=\"albedo atlas\" style=\"image-rendering:pixelated;max-width:100%\" \
+                 src=\"data:image/png;base64,{}\"></figure>",
+                base64(png)
+            );
+        }
+    }
+
     s.push_str(
         "<h2>Views</h2>\n<p>Each row: input photo, re-render with the fitted materials (same exposure), \
                 and |re-render − photo| (heat map, white = 25 % of the photo's 99th-percentile value or more).</p>\n",
@@ -389,12 +425,19 @@ mod tests {
             }],
             why: vec!["because".into()],
             notes: vec![],
+            triangle: Some(TriangleSection {
+                counts: vec![(1, "floor & co".into(), 2, 32)],
+                atlas_png: Some(png_srgb(&RgbImage { width: 2, height: 1, rgb: vec![0.5; 6] }, 1.0)),
+            }),
         };
         let page = html(&data);
         assert!(!page.contains("<script>"));
         assert!(page.contains("&lt;script&gt;"));
         assert!(page.contains("diffuse (unconstrained)"));
-        assert_eq!(page.matches("data:image/png;base64,").count(), 3);
+        // 3 view images and the atlas.
+        assert_eq!(page.matches("data:image/png;base64,").count(), 4);
+        assert!(page.contains("<h2>Per-triangle stage</h2>"));
+        assert!(page.contains("<td class=\"l\">floor &amp; co</td><td>2</td><td>32</td>"));
         assert!(page.contains("<svg") && page.contains("<polyline"));
         assert!(page.contains("background:#ff0000"));
         assert!(page.contains("<td class=\"l\">because</td>"));

@@ -1,7 +1,8 @@
 //! "Uniform objects stay as they are" (issues 6 and 7): on the default scene (data-fixtures/scenes/demo.toml,
 //! every object one colour) the per-triangle stage, started from the per-object values, leaves every triangle of
-//! every non-emitting object within a noise-derived tolerance of its object's value and splits nothing.
-//! In-memory scene with 256-path photos; the stage runs with its default settings.
+//! every non-emitting object within a noise-derived tolerance of its object's value (the split test is not
+//! asserted here: it still makes 3 false splits on this scene). In-memory scene with 256-path photos; the stage
+//! runs with its default settings.
 
 use std::path::Path;
 
@@ -53,13 +54,22 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
             continue;
         }
         let e = (m.base_color - params.materials[o].base_color).abs();
-        if e.max_element() > 0.03 {
-            eprintln!("triangle {t} object {o}: {} vs {}", m.base_color, params.materials[o].base_color);
-        }
         worst = worst.max(e.max_element());
         sum += f64::from(e.element_sum()) / 3.0;
         n += 1;
     }
     let mean = sum / n as f64;
-    eprintln!("{} → {} triangles; per-triangle albedo error mean {mean:.5}, max {worst:.5}", built.mesh.triangles.len(), out.triangles.len());
+    eprintln!(
+        "{} → {} triangles; per-triangle albedo error mean {mean:.5}, max {worst:.5}",
+        built.mesh.triangles.len(),
+        out.triangles.len()
+    );
+    // Tolerances, from the noise of this scene: a triangle's own estimate from its few dozen pixels at the
+    // stage's 32 render paths scatters by ~0.02 (measured without shrinkage: mean |error| 0.022, worst 0.198 on
+    // the ceiling, which only 84 pixels see). Held at its object's value a triangle carries only the
+    // object-level noise (measured: mean 0.0012, worst 0.043, the ceiling). The mean bound sits at half the
+    // per-triangle noise, so a stage that passed per-triangle noise through fails it; the worst-case bound is
+    // the measured worst with margin for another seed, far below the 0.198 of the unshrunk estimates.
+    assert!(mean < 0.01, "mean per-triangle albedo error {mean:.4}: per-triangle noise was not held back");
+    assert!(worst < 0.08, "worst per-triangle albedo error {worst:.4}");
 }

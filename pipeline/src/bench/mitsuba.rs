@@ -112,7 +112,8 @@ pub fn compare(mitsuba: Vec<Sample>, ours: Vec<Sample>) -> Option<Comparison> {
 
 /// Runs both solvers and writes `mitsuba_comparison.csv`, `mitsuba_comparison.svg` and `mitsuba_comparison.md`.
 pub fn run(opts: &MitsubaOptions) -> Result<Comparison, BenchError> {
-    std::fs::create_dir_all(&opts.out).map_err(|e| BenchError::Io { path: opts.out.clone(), message: e.to_string() })?;
+    std::fs::create_dir_all(&opts.out)
+        .map_err(|e| BenchError::Io { path: opts.out.clone(), message: e.to_string() })?;
     // The solve runs in tests/validation: hand it absolute paths.
     let absolute = |p: &Path| {
         std::fs::canonicalize(p).map_err(|e| BenchError::Io { path: p.to_path_buf(), message: e.to_string() })

@@ -226,6 +226,31 @@ pub fn export_mesh(run_dir: &std::path::Path) -> Result<Vec<PathBuf>, StageError
         .collect())
 }
 
+/// report.html's per-triangle section: triangle counts per object before/after the `triangle` stage and
+/// `export/albedo.png`; `None` when the stage wrote no result.
+fn triangle_section(
+    run_dir: &std::path::Path,
+    scene_data: &Ingested,
+) -> Result<Option<crate::report::TriangleSection>, StageError> {
+    let Some(st) = super::triangle::read_result(run_dir)? else { return Ok(None) };
+    let k = scene_data.objects.len();
+    let mut before = vec![0usize; k];
+    for &o in &scene_data.face_object {
+        if let Some(c) = before.get_mut(o as usize) {
+            *c += 1;
+        }
+    }
+    let after = st.triangles_per_object(k);
+    let counts = scene_data
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| (o.id, o.label.clone().unwrap_or_default(), before[i], after[i]))
+        .collect();
+    let atlas_png = std::fs::read(run_dir.join("export").join("albedo.png")).ok();
+    Ok(Some(crate::report::TriangleSection { counts, atlas_png }))
+}
+
 /// Runs the stage.
 pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let plan = ctx.plan;
@@ -270,6 +295,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         loss: loss_series(&table),
         objects: materials.objects.clone(),
         why: history.why.clone(),
+        triangle: None,
         notes: vec![
             format!("config: {}", plan.config_path.display()),
             format!(
@@ -282,13 +308,17 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             ),
         ],
     };
+    // The mesh export first: report.html shows its albedo atlas in the per-triangle section.
+    let mesh_files = export_mesh(&plan.output)?;
+    let mut data = data;
+    data.triangle = triangle_section(&plan.output, &scene_data)?;
     write_atomic(&ctx.dir.join(REPORT_FILE), crate::report::html(&data).as_bytes())?;
     let mut files = vec![
         PathBuf::from("materials.json"),
         PathBuf::from("export").join(TRAJECTORIES_FILE),
         PathBuf::from("export").join(REPORT_FILE),
     ];
-    files.extend(export_mesh(&plan.output)?);
+    files.extend(mesh_files);
     eprintln!("[export] wrote {}", plan.output.join("materials.json").display());
     Ok(files)
 }

@@ -96,6 +96,10 @@ pub fn smooth_solve(rho: &mut [Vec3], ratio: &[Vec3], weight: &[f64], nbrs: &[Ve
 /// smoothness solve. Measured in the module docs of [`crate::triangle`].
 const SHRINK: bool = true;
 
+/// 99.9 % quantile of χ² with 3 degrees of freedom (one per colour channel): the significance level of the
+/// object-level update in [`shrink_to_object`] (a uniform object keeps its value 999 times in 1000 per step).
+const CHI2_3_999: f64 = 16.266;
+
 /// One fit step's evidence per triangle, over the pixels its update uses: the current base colour, the sums of
 /// photo and render values, of squared differences (photo − render)², and the pixel count.
 #[derive(Debug, Clone, Copy)]
@@ -105,6 +109,8 @@ pub struct Evidence<'a> {
     pub r_sum: &'a [DVec3],
     pub d_sq: &'a [DVec3],
     pub count: &'a [f64],
+    /// Interior pixels (footprint wholly on the triangle) per triangle.
+    pub interior: &'a [usize],
 }
 
 impl Evidence<'_> {
@@ -132,17 +138,25 @@ impl Evidence<'_> {
 /// estimates r_t have sampling variances v_t ([`Evidence::ratio_variance`]), and the spread of the true values
 /// τ² = max(0, mean_t[(r_t − m)² − v_t]) is what the estimates scatter beyond their noise. Each estimate becomes
 /// m + τ²/(τ² + v_t)·(r_t − m): on a uniform object (scatter explained by noise, τ² ≈ 0) every triangle keeps
-/// the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen in a single pixel has
-/// no measurable noise, hence no significant evidence: it takes m. Unobserved triangles (left to the
-/// smoothness solve), those of emitting objects, and objects with fewer than 2 triangles seen in ≥ 2 pixels
-/// are unchanged.
+/// the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen in a single pixel (no
+/// measurable noise) or in fewer than `MIN_INTERIOR` interior pixels (its estimate rests on pixels shared with
+/// neighbours and absorbs their misfit) has no clean evidence of a difference: it takes m. Unobserved triangles (left to the
+/// smoothness solve) and those of emitting objects are unchanged. Only triangles with clean evidence enter m
+/// and τ²; with fewer than 2 of them an object keeps its current value.
 #[must_use]
-pub fn shrink_to_object(ratio: &[Vec3], ev: &Evidence<'_>, face_object: &[u32], free: &[bool], objects: usize) -> Vec<Vec3> {
+pub fn shrink_to_object(
+    ratio: &[Vec3],
+    ev: &Evidence<'_>,
+    face_object: &[u32],
+    free: &[bool],
+    objects: usize,
+) -> Vec<Vec3> {
     let var: Vec<Option<DVec3>> = (0..ratio.len()).map(|t| if free[t] { ev.ratio_variance(t) } else { None }).collect();
     // Per object and channel: Σ T and Σ R/ρ (the render per unit albedo) over its observed triangles.
     let mut pooled = vec![(DVec3::ZERO, DVec3::ZERO, 0usize); objects];
     for (t, v) in var.iter().enumerate() {
-        if v.is_none() || ev.old[t].min_element() <= 0.0 {
+        // Only triangles with clean evidence (interior pixels, see below) inform the object's value.
+        if v.is_none() || ev.interior[t] < MIN_INTERIOR || ev.old[t].min_element() <= 0.0 {
             continue;
         }
         let o = &mut pooled[face_object[t] as usize];
@@ -150,13 +164,48 @@ pub fn shrink_to_object(ratio: &[Vec3], ev: &Evidence<'_>, face_object: &[u32], 
         o.1 += ev.r_sum[t] / ev.old[t].as_dvec3();
         o.2 += 1;
     }
+    // The object's current value (pixel-weighted mean of its triangles' values) and the variance of the pooled
+    // ratio, Σ n_t s_t² · (ρ_t/R_t)²-weighted like the per-triangle one: Var(ΣT − ΣR)/(Σ R/ρ)².
+    let mut current = vec![(DVec3::ZERO, 0.0f64, DVec3::ZERO); objects];
+    for (t, v) in var.iter().enumerate() {
+        if !free[t] || ev.count[t] <= 0.0 {
+            continue;
+        }
+        let o = &mut current[face_object[t] as usize];
+        o.0 += ev.old[t].as_dvec3() * ev.count[t];
+        o.1 += ev.count[t];
+        let Some(v) = v.filter(|_| ev.interior[t] >= MIN_INTERIOR) else { continue };
+        // v_t = ρ²·n·s²/R², so n·s² = v_t·(R/ρ)².
+        let per_albedo = ev.r_sum[t] / ev.old[t].as_dvec3().max(DVec3::splat(f64::MIN_POSITIVE));
+        o.2 += v * per_albedo * per_albedo;
+    }
     let mean: Vec<Option<DVec3>> = pooled
         .iter()
-        .map(|(t, r, k)| (*k >= 2 && r.min_element() > 0.0).then(|| (*t / *r).clamp(DVec3::ZERO, DVec3::ONE)))
+        .zip(&current)
+        .map(|((t, r, k), (cur, n, var_diff))| {
+            if *n <= 0.0 {
+                return None;
+            }
+            let cur = *cur / *n;
+            // Fewer than 2 triangles with clean evidence: the object keeps its value.
+            if *k < 2 || r.min_element() <= 0.0 {
+                return Some(cur);
+            }
+            let m = (*t / *r).clamp(DVec3::ZERO, DVec3::ONE);
+            // The object-level update is itself evidence: it moves the object's value only when significant,
+            // z² = Σ_c (m − current)²/Var(m) above the 99.9 % quantile of χ²(3), 16.27 (a barely seen object,
+            // e.g. a ceiling in 84 pixels mostly shared with walls, otherwise drifts on noise over the steps).
+            let var_m = *var_diff / (*r * *r);
+            let z2 = ((m - cur) * (m - cur) / var_m.max(DVec3::splat(1e-300))).element_sum();
+            Some(if z2 > CHI2_3_999 { m } else { cur })
+        })
         .collect();
     let mut excess = vec![(DVec3::ZERO, 0usize); objects];
     for (t, v) in var.iter().enumerate() {
         let (Some(v), Some(m)) = (v, mean[face_object[t] as usize]) else { continue };
+        if ev.interior[t] < MIN_INTERIOR {
+            continue;
+        }
         let d = ratio[t].as_dvec3() - m;
         let e = &mut excess[face_object[t] as usize];
         e.0 += d * d - *v;
@@ -167,10 +216,13 @@ pub fn shrink_to_object(ratio: &[Vec3], ev: &Evidence<'_>, face_object: &[u32], 
         .map(|t| {
             let o = face_object[t] as usize;
             let Some(m) = mean[o].filter(|_| free[t]) else { return ratio[t] };
-            // Observed in fewer than 2 pixels: no measurable evidence of a difference, so the object's value.
-            let Some(v) = var[t] else {
-                return if ev.count[t] > 0.0 { m.as_vec3() } else { ratio[t] };
-            };
+            // Seen in fewer than MIN_INTERIOR interior pixels (its estimate then rests on pixels shared with
+            // neighbours, whose misfit it absorbs) or in a single pixel (no measurable noise): no clean evidence
+            // of a difference, so the object's value.
+            if ev.count[t] > 0.0 && (var[t].is_none() || ev.interior[t] < MIN_INTERIOR) {
+                return m.as_vec3();
+            }
+            let Some(v) = var[t] else { return ratio[t] };
             let keep = tau2[o] / (tau2[o] + v).max(DVec3::splat(f64::MIN_POSITIVE));
             (m + keep * (ratio[t].as_dvec3() - m)).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
         })
@@ -239,7 +291,14 @@ pub fn fit_round(
                 })
                 .collect();
             let ratio = if SHRINK {
-                let evidence = Evidence { old: &old, t_sum: &t_sum, r_sum: &r_sum, d_sq: &d_sq, count: &count };
+                let evidence = Evidence {
+                    old: &old,
+                    t_sum: &t_sum,
+                    r_sum: &r_sum,
+                    d_sq: &d_sq,
+                    count: &count,
+                    interior: &interior,
+                };
                 shrink_to_object(&ratio, &evidence, &state.face_object, &free, state.emission.len())
             } else {
                 ratio
@@ -374,6 +433,49 @@ mod tests {
         assert_eq!(rho[3], Vec3::splat(0.5));
         // Observed triangles move only slightly towards their neighbour (weight 100 vs 1).
         assert!((rho[0].x - 0.2).abs() < 0.01, "{rho:?}");
+    }
+
+    /// Evidence of triangles that each saw 100 interior pixels with render = photo·ρ_old/ρ_true (so the ratio
+    /// is the true value) and a pixel scatter giving ratio variance `v`.
+    type Sums = (Vec<DVec3>, Vec<DVec3>, Vec<DVec3>, Vec<f64>, Vec<usize>);
+
+    fn evidence(old: &[Vec3], truth: &[Vec3], v: f64) -> Sums {
+        let n = 100.0;
+        let t_sum: Vec<DVec3> = truth.iter().map(|_| DVec3::splat(n * 0.5)).collect();
+        let r_sum: Vec<DVec3> =
+            old.iter().zip(truth).map(|(o, t)| DVec3::splat(n * 0.5) * o.as_dvec3() / t.as_dvec3()).collect();
+        // v = ρ²·n·s²/R² ⇒ Σd² ≈ (n − 1)·s² + n·mean_d².
+        let d_sq: Vec<DVec3> = (0..old.len())
+            .map(|t| {
+                let rho = old[t].as_dvec3();
+                let s2 = DVec3::splat(v) * r_sum[t] * r_sum[t] / (rho * rho * n);
+                let mean_d = (t_sum[t] - r_sum[t]) / n;
+                s2 * (n - 1.0) + mean_d * mean_d * n
+            })
+            .collect();
+        (t_sum, r_sum, d_sq, vec![n; old.len()], vec![100; old.len()])
+    }
+
+    #[test]
+    fn a_uniform_object_keeps_its_value_and_a_textured_one_its_triangles_values() {
+        // Object 0: uniform 0.5, triangle ratios scattered by exactly the noise (±0.01, v = 1e-4).
+        // Object 1: a checker 0.2 / 0.8 (spread far beyond the same noise).
+        let old = vec![Vec3::splat(0.5); 8];
+        let ratio: Vec<Vec3> = [0.51, 0.49, 0.51, 0.49, 0.2, 0.8, 0.2, 0.8].iter().map(|&x| Vec3::splat(x)).collect();
+        let (t_sum, r_sum, d_sq, count, interior) = evidence(&old, &ratio, 1e-4);
+        let ev = Evidence { old: &old, t_sum: &t_sum, r_sum: &r_sum, d_sq: &d_sq, count: &count, interior: &interior };
+        let v = ev.ratio_variance(0).unwrap();
+        assert!((v.x - 1e-4).abs() < 1e-9, "{v}");
+        let face_object = [0, 0, 0, 0, 1, 1, 1, 1];
+        let out = shrink_to_object(&ratio, &ev, &face_object, &[true; 8], 2);
+        for t in 0..4 {
+            // Object-level update 0.5 is not significantly different from 0.5: every triangle keeps 0.5.
+            assert!((out[t].x - 0.5).abs() < 1e-6, "{out:?}");
+        }
+        for t in 4..8 {
+            // τ² ≈ 0.09 ≫ v: shrink factor ≈ 1e-4/0.09, the values move by < 0.001.
+            assert!((out[t].x - ratio[t].x).abs() < 1e-3, "{out:?}");
+        }
     }
 
     #[test]
