@@ -50,8 +50,8 @@ pub fn anova_f(groups: &[Vec<f64>]) -> Option<f64> {
 pub struct SplitEvidence {
     /// ANOVA F of the residuals (max over channels): structure over noise.
     pub f: f64,
-    /// Largest |mean residual of a child| / mean photo radiance of the triangle (max over channels): the
-    /// relative albedo change the split would make.
+    /// Largest |mean residual of a child − mean residual of the triangle| / mean photo radiance of the triangle
+    /// (max over channels): the relative albedo difference between the children that the split would resolve.
     pub contrast: f64,
 }
 
@@ -77,10 +77,14 @@ pub fn evidence(triangles: usize, samples: &[TriSample], fitted: &Fitted) -> Vec
             let mut contrast = 0.0f64;
             for (c, ch) in g.iter().enumerate() {
                 let level = tsum[c] / tn.max(1.0);
+                // Children are compared with the triangle's own mean residual: a residual offset shared by the
+                // whole triangle (e.g. after its value was pulled to the object's) is no reason to split it.
+                let (sum, count) = ch.iter().fold((0.0, 0usize), |(s, n), x| (s + x.iter().sum::<f64>(), n + x.len()));
+                let whole = sum / count.max(1) as f64;
                 for child in ch.iter().filter(|x| !x.is_empty()) {
                     let m = child.iter().sum::<f64>() / child.len() as f64;
                     if level > 0.0 {
-                        contrast = contrast.max(m.abs() / level);
+                        contrast = contrast.max((m - whole).abs() / level);
                     }
                 }
             }
