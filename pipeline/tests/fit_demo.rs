@@ -5,30 +5,16 @@
 use pipeline::fit::{FitInputs, ObjectFitSettings};
 use std::path::Path;
 
-fn read_exr(path: &Path) -> ingest::photo::LinearImage {
-    use exr::prelude::*;
-    let img = read_first_rgba_layer_from_file(
-        path,
-        |res, _| (res.width(), res.height(), vec![0f32; 3 * res.width() * res.height()]),
-        |(w, _, buf), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            let i = 3 * (pos.y() * *w + pos.x());
-            buf[i] = r;
-            buf[i + 1] = g;
-            buf[i + 2] = b;
-        },
-    )
-    .unwrap();
-    let (w, h, rgb) = img.layer_data.channel_data.pixels;
-    ingest::photo::LinearImage { width: w as u32, height: h as u32, rgb, mask: vec![1; w * h] }
-}
-
 #[test]
 fn demo_scene_fit_meets_the_issue_acceptance() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures");
     let desc_path = root.join("scenes/demo.toml");
     let built = pipeline::synth::build(pipeline::synth::load_desc(&desc_path).unwrap(), &desc_path).unwrap();
     let images: Vec<_> = (0..built.cameras.len())
-        .map(|k| read_exr(&root.join(format!("demo/undistorted_color_images/demo_i0_{k}.exr"))))
+        .map(|k| {
+            pipeline::bench::scenes::read_exr(&root.join(format!("demo/undistorted_color_images/demo_i0_{k}.exr")))
+                .unwrap()
+        })
         .collect();
     let objects = pipeline::synth::fit_objects(&built);
     let settings = ObjectFitSettings::default();

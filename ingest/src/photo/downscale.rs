@@ -12,11 +12,23 @@ pub fn scale_intrinsics(k: &Intrinsics, factor: u32) -> Intrinsics {
     Intrinsics { fx: k.fx / s, fy: k.fy / s, cx: (k.cx + 0.5) / s - 0.5, cy: (k.cy + 0.5) / s - 0.5 }
 }
 
+/// [`downscale_image`] with the camera updated to match: size and intrinsics ([`scale_intrinsics`]); its
+/// distortion (which acts on normalised coordinates) and pose are kept.
+pub fn downscale(image: &LinearImage, camera: &Camera, factor: u32) -> Result<(Camera, LinearImage), OpError> {
+    let image = downscale_image(image, factor)?;
+    let camera = Camera {
+        width: image.width,
+        height: image.height,
+        intrinsics: scale_intrinsics(&camera.intrinsics, factor),
+        ..*camera
+    };
+    Ok((camera, image))
+}
+
 /// Averages `factor × factor` blocks. The output is `floor(W/s) × floor(H/s)`: a partial block at the right or
 /// bottom edge is dropped (cropping there does not move the origin, so the intrinsics formula still holds).
-/// A block is valid only if all of its source pixels are valid. The camera's size and intrinsics are updated;
-/// its distortion (which acts on normalised coordinates) and pose are kept.
-pub fn downscale(image: &LinearImage, camera: &Camera, factor: u32) -> Result<(Camera, LinearImage), OpError> {
+/// A block is valid only if all of its source pixels are valid.
+pub fn downscale_image(image: &LinearImage, factor: u32) -> Result<LinearImage, OpError> {
     if factor == 0 {
         return Err(OpError::Invalid("downscale factor must be at least 1".into()));
     }
@@ -50,6 +62,5 @@ pub fn downscale(image: &LinearImage, camera: &Camera, factor: u32) -> Result<(C
             mask.push(u8::from(valid));
         }
     }
-    let camera = Camera { width: w, height: h, intrinsics: scale_intrinsics(&camera.intrinsics, factor), ..*camera };
-    Ok((camera, LinearImage::new(w, h, rgb, mask)?))
+    LinearImage::new(w, h, rgb, mask)
 }

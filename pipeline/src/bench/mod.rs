@@ -75,7 +75,7 @@ pub fn timed_fit(scene: &BenchScene, train_views: &[usize], setup: &FitSetup) ->
     let cameras: Vec<tracer::Camera> =
         train_views.iter().map(|&k| scenes::downscale_camera(&scene.built.cameras[k], d)).collect();
     let images: Vec<ingest::photo::LinearImage> =
-        train_views.iter().map(|&k| scenes::downscale_image(&scene.photos[k], d)).collect();
+        train_views.iter().map(|&k| scenes::downscale_image(&scene.photos[k], d)).collect::<Result<_, _>>()?;
     let objects = crate::synth::fit_objects(&scene.built);
     let tracer_settings = tracer::TracerSettings { max_depth: setup.max_depth, ..scene.built.settings };
     let inputs = FitInputs {

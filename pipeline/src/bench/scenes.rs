@@ -52,62 +52,46 @@ pub fn load(workspace: &Path, name: &str) -> Result<BenchScene, BenchError> {
     Ok(BenchScene { name: name.to_owned(), built, photos })
 }
 
-/// Reads a linear RGB(A) EXR (the synthetic scans' photos) with every pixel valid.
+/// Reads a linear EXR (the synthetic scans' photos) through ingest's photo reader.
 pub fn read_exr(path: &Path) -> Result<LinearImage, BenchError> {
-    use exr::prelude::*;
-    let img = read_first_rgba_layer_from_file(
-        path,
-        |res, _| (res.width(), res.height(), vec![0f32; 3 * res.width() * res.height()]),
-        |(w, _, buf), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            let i = 3 * (pos.y() * *w + pos.x());
-            buf[i] = r;
-            buf[i + 1] = g;
-            buf[i + 2] = b;
-        },
-    )
-    .map_err(|e| BenchError::Io { path: path.to_path_buf(), message: e.to_string() })?;
-    let (w, h, rgb) = img.layer_data.channel_data.pixels;
-    Ok(LinearImage { width: w as u32, height: h as u32, rgb, mask: vec![1; w * h] })
+    match ingest::photo::read_image(path) {
+        Ok(ingest::photo::DecodedImage::Linear(img)) => Ok(img),
+        Ok(ingest::photo::DecodedImage::Display(_)) => {
+            Err(BenchError::Io { path: path.to_path_buf(), message: "not a linear (EXR/HDR) image".into() })
+        }
+        Err(e) => Err(BenchError::Io { path: path.to_path_buf(), message: e.to_string() }),
+    }
 }
 
-/// The camera of the same view at `1/factor` resolution, matching a `factor`×`factor` box filter of its image
-/// (pixel centres at integer coordinates: new pixel X covers old pixels factor·X … factor·X + factor − 1,
-/// centred at old coordinate factor·X + (factor − 1)/2).
+/// The camera of the same view at `1/factor` resolution, matching [`downscale_image`] of its image (the
+/// intrinsics rule is ingest's [`ingest::photo::downscale::scale_intrinsics`]).
 #[must_use]
 pub fn downscale_camera(c: &tracer::Camera, factor: u32) -> tracer::Camera {
-    let f = factor as f32;
-    let shift = 0.5 * (f - 1.0);
+    let k = ingest::photo::downscale::scale_intrinsics(
+        &ingest::camera::Intrinsics {
+            fx: f64::from(c.fx),
+            fy: f64::from(c.fy),
+            cx: f64::from(c.cx),
+            cy: f64::from(c.cy),
+        },
+        factor,
+    );
     tracer::Camera {
         width: c.width / factor,
         height: c.height / factor,
-        fx: c.fx / f,
-        fy: c.fy / f,
-        cx: (c.cx - shift) / f,
-        cy: (c.cy - shift) / f,
+        fx: k.fx as f32,
+        fy: k.fy as f32,
+        cx: k.cx as f32,
+        cy: k.cy as f32,
         cam_to_world: c.cam_to_world,
     }
 }
 
-/// Box-filter downscale of an all-valid image by an integer factor (the size must be divisible by it).
-#[must_use]
-pub fn downscale_image(img: &LinearImage, factor: u32) -> LinearImage {
-    let (w, h) = (img.width / factor, img.height / factor);
-    let mut rgb = vec![0f32; 3 * (w * h) as usize];
-    let norm = 1.0 / (factor * factor) as f32;
-    for y in 0..h {
-        for x in 0..w {
-            let o = 3 * (y * w + x) as usize;
-            for dy in 0..factor {
-                for dx in 0..factor {
-                    let i = 3 * ((y * factor + dy) * img.width + x * factor + dx) as usize;
-                    for c in 0..3 {
-                        rgb[o + c] += img.rgb[i + c] * norm;
-                    }
-                }
-            }
-        }
-    }
-    LinearImage { width: w, height: h, rgb, mask: vec![1; (w * h) as usize] }
+/// Box-filter downscale of an image by an integer factor (ingest's area average; the bench only uses factors
+/// that divide the size, see [`divisible`]).
+pub fn downscale_image(img: &LinearImage, factor: u32) -> Result<LinearImage, BenchError> {
+    ingest::photo::downscale::downscale_image(img, factor)
+        .map_err(|e| BenchError::Other(format!("downscale by {factor}: {e}")))
 }
 
 /// Whether every camera's size is divisible by `factor`.
