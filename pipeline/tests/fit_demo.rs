@@ -2,7 +2,7 @@
 //! issue 5's acceptance numbers — albedo mean L1 ≤ 0.01 over non-emitting objects, the hidden light within
 //! 5 %, no other emitter above 1 % of it — and every wall and box diffuse.
 
-use pipeline::fit::{FitInputs, ObjectFitSettings};
+use pipeline::fit::ObjectFitSettings;
 use std::path::Path;
 
 #[test]
@@ -16,18 +16,9 @@ fn demo_scene_fit_meets_the_issue_acceptance() {
                 .unwrap()
         })
         .collect();
-    let objects = pipeline::synth::fit_objects(&built);
     let settings = ObjectFitSettings::default();
-    let inputs = FitInputs {
-        scene: &built.scene,
-        cameras: &built.cameras,
-        images: &images,
-        objects: &objects,
-        settings: &settings,
-        tracer: &built.settings,
-    };
     let t = std::time::Instant::now();
-    let out = pipeline::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &indicatif::ProgressBar::hidden()).unwrap();
+    let out = pipeline::synth::fit(&built, &images, &settings).unwrap();
     eprintln!("demo fit: {:.1} s", t.elapsed().as_secs_f64());
     let truth = &built.params;
     let light = built.desc.objects.iter().position(|o| o.hidden).unwrap();

@@ -7,7 +7,7 @@
 //! 1.9 %. Other fit seeds: see the module docs of `pipeline::fit`.
 //! `FIT_GLOSSY_SEED=n` reruns it with another fit seed (a manual robustness check; the default is 0).
 
-use pipeline::fit::{FitInputs, ObjectFitSettings};
+use pipeline::fit::ObjectFitSettings;
 use std::path::Path;
 
 #[test]
@@ -15,19 +15,10 @@ fn glossy_objects_gain_the_specular_lobe_and_walls_stay_diffuse() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/glossy.toml");
     let built = pipeline::synth::build(pipeline::synth::load_desc(&path).unwrap(), &path).unwrap();
     let images = pipeline::synth::photos(&built).unwrap();
-    let objects = pipeline::synth::fit_objects(&built);
     let seed = std::env::var("FIT_GLOSSY_SEED").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
     let settings = ObjectFitSettings { seed, ..ObjectFitSettings::default() };
-    let inputs = FitInputs {
-        scene: &built.scene,
-        cameras: &built.cameras,
-        images: &images,
-        objects: &objects,
-        settings: &settings,
-        tracer: &built.settings,
-    };
     let t = std::time::Instant::now();
-    let out = pipeline::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &indicatif::ProgressBar::hidden()).unwrap();
+    let out = pipeline::synth::fit(&built, &images, &settings).unwrap();
     eprintln!("glossy fit: {:.1} s", t.elapsed().as_secs_f64());
     for (k, o) in built.desc.objects.iter().enumerate() {
         let m = out.params.materials[k];

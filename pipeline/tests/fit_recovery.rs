@@ -1,6 +1,6 @@
 //! Recovery of the small synthetic room: albedo, the hidden light, no spurious emitters, model decisions.
 
-use pipeline::fit::{FitInputs, ObjectFitSettings};
+use pipeline::fit::ObjectFitSettings;
 use std::path::Path;
 
 fn small() -> pipeline::synth::BuiltScene {
@@ -15,18 +15,9 @@ fn small_room_albedo_and_hidden_light_are_recovered() {
     let t0 = std::time::Instant::now();
     let images = pipeline::synth::photos(&built).unwrap();
     eprintln!("photos {:.1}s", t0.elapsed().as_secs_f64());
-    let objects = pipeline::synth::fit_objects(&built);
     let settings = ObjectFitSettings::default();
-    let inputs = FitInputs {
-        scene: &built.scene,
-        cameras: &built.cameras,
-        images: &images,
-        objects: &objects,
-        settings: &settings,
-        tracer: &built.settings,
-    };
     let t1 = std::time::Instant::now();
-    let out = pipeline::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &indicatif::ProgressBar::hidden()).unwrap();
+    let out = pipeline::synth::fit(&built, &images, &settings).unwrap();
     eprintln!("fit {:.1}s", t1.elapsed().as_secs_f64());
     for h in out.history.iter().filter(|h| h.iteration % 25 == 0 || h.phase == "refine") {
         eprintln!("{} {} loss {:.5} light emission {:.3?}", h.iteration, h.phase, h.loss, h.emission.last().unwrap());

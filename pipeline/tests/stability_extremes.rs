@@ -7,7 +7,7 @@
 //! The rooms are small (24×18 or 32×24 pixels, photos at 256 paths) so that each test stays well under a
 //! minute in the debug build; tolerances are set from that noise level.
 
-use pipeline::fit::{FitInputs, FitOutcome, ObjectFitSettings};
+use pipeline::fit::{FitOutcome, ObjectFitSettings};
 use pipeline::synth::BuiltScene;
 
 /// The 3 m × 2.5 m × 2.2 m room of data-fixtures/scenes/small.toml, every coordinate shifted by `off`, with
@@ -102,17 +102,8 @@ fn fit(built: &BuiltScene, settings: ObjectFitSettings) -> FitOutcome {
     let images = pipeline::synth::photos(built).unwrap();
     let finite_pixels = images.iter().flat_map(|i| &i.rgb).filter(|v| v.is_finite()).count();
     assert_eq!(finite_pixels, images.iter().map(|i| i.rgb.len()).sum::<usize>(), "non-finite photo pixels");
-    let objects = pipeline::synth::fit_objects(built);
-    let inputs = FitInputs {
-        scene: &built.scene,
-        cameras: &built.cameras,
-        images: &images,
-        objects: &objects,
-        settings: &settings,
-        tracer: &built.settings,
-    };
     let t = std::time::Instant::now();
-    let out = pipeline::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &indicatif::ProgressBar::hidden())
+    let out = pipeline::synth::fit(built, &images, &settings)
         .expect("the fit aborts on any non-finite gradient, loss or parameter");
     eprintln!("fit: {:.1} s", t.elapsed().as_secs_f64());
     for m in &out.params.materials {

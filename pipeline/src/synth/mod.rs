@@ -319,3 +319,22 @@ pub fn fit_objects(built: &BuiltScene) -> Vec<crate::fit::ObjectDesc> {
         })
         .collect()
 }
+
+/// The per-object fit of a synthetic scene from `images` (one per camera), from scratch, without checkpoints or
+/// a visible progress bar: the common form of the fits that tests run on synthetic scenes.
+pub fn fit(
+    built: &BuiltScene,
+    images: &[ingest::photo::LinearImage],
+    settings: &crate::fit::ObjectFitSettings,
+) -> Result<crate::fit::FitOutcome, crate::fit::FitError> {
+    let objects = fit_objects(built);
+    let inputs = crate::fit::FitInputs {
+        scene: &built.scene,
+        cameras: &built.cameras,
+        images,
+        objects: &objects,
+        settings,
+        tracer: &built.settings,
+    };
+    crate::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &indicatif::ProgressBar::hidden())
+}
