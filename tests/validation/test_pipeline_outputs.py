@@ -103,12 +103,21 @@ def test_materials_json_has_the_documented_schema(run_dir):
 class _Refs(HTMLParser):
     def __init__(self):
         super().__init__()
-        self.imgs, self.external = [], []
+        self.imgs, self.external = {}, []
 
     def handle_starttag(self, tag, attrs):
+        alt = dict(attrs).get("alt", "")
         for k, v in attrs:
             if k in ("src", "href") and v is not None:
-                (self.imgs if v.startswith("data:image/png;base64,") else self.external).append(v)
+                if v.startswith("data:image/png;base64,"):
+                    self.imgs.setdefault(alt, []).append(v)
+                else:
+                    self.external.append(v)
+
+
+def _decode_png(uri):
+    png = np.frombuffer(base64.b64decode(uri.split(",", 1)[1]), dtype=np.uint8)
+    return cv2.imdecode(png, cv2.IMREAD_COLOR)
 
 
 def test_report_is_self_contained_and_its_images_decode(run_dir):
@@ -116,13 +125,16 @@ def test_report_is_self_contained_and_its_images_decode(run_dir):
     p = _Refs()
     p.feed(html)
     assert p.external == []
-    assert len(p.imgs) == 3 * 2  # photo, re-render, error map for each of report_views = 2
+    # Photo, re-render and error map for each of report_views = 2, and the per-triangle stage's albedo atlas.
+    assert {alt: len(uris) for alt, uris in p.imgs.items()} == {"photo": 2, "re-render": 2, "error": 2, "albedo atlas": 1}
     views = json.loads((run_dir / "preprocess" / "views.json").read_text())["views"]
     cam = json.loads((run_dir / "preprocess" / f"{views[0]}.json").read_text())
-    for uri in p.imgs:
-        png = np.frombuffer(base64.b64decode(uri.split(",", 1)[1]), dtype=np.uint8)
-        img = cv2.imdecode(png, cv2.IMREAD_COLOR)
-        assert img is not None and img.shape == (cam["height"], cam["width"], 3)
+    for alt in ("photo", "re-render", "error"):
+        for uri in p.imgs[alt]:
+            img = _decode_png(uri)
+            assert img is not None and img.shape == (cam["height"], cam["width"], 3)
+    atlas = _decode_png(p.imgs["albedo atlas"][0])
+    assert atlas is not None and atlas.shape[:2] == cv2.imread(str(run_dir / "export" / "albedo.png")).shape[:2]
     assert re.search(r"<svg[^>]*>.*<polyline", html, re.S)
 
 
