@@ -2,6 +2,7 @@
 //! into `output.path/<stage>/` atomically and returning the list of files it wrote (relative to
 //! `output.path`), which the runner hashes into the stage's manifest.
 
+pub mod checkpoint;
 pub mod export;
 pub mod ingest;
 pub mod object;
@@ -62,5 +63,13 @@ impl StageExecutor for Stages {
             StageId::Triangle => triangle::run(ctx),
             StageId::Export => export::run(ctx),
         }
+    }
+}
+
+/// Removes `path`; a file that is already gone is not an error.
+pub(crate) fn remove_if_present(path: std::path::PathBuf) -> Result<(), StageError> {
+    match std::fs::remove_file(&path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(StageError::Io { path, source: e }),
+        _ => Ok(()),
     }
 }

@@ -12,13 +12,10 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::{Deserialize, Serialize};
-
 use super::StageError;
+use super::checkpoint;
 use super::ingest::Ingested;
-use super::object_result::{
-    CHECKPOINT_FILE, CHECKPOINT_FORMAT, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE,
-};
+use super::object_result::{CHECKPOINT_FORMAT, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE};
 use super::preprocess::Prepared;
 use crate::atomic_file::write_json_atomic;
 use crate::config::profile_name;
@@ -26,33 +23,10 @@ use crate::fit::{FitError, FitInputs, FitState, ObjectDesc};
 use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
 use crate::runner::StageContext;
 
-/// `checkpoint.json`.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Checkpoint {
-    pub format: String,
-    pub config_sha256: String,
-    pub inputs_sha256: String,
-    pub state: FitState,
-}
-
-/// The checkpoint of `dir` if it belongs to this exact computation (same config and inputs hashes).
+/// The checkpointed fit state of `dir` if it belongs to this exact computation (same config and inputs hashes).
 #[must_use]
 pub fn resumable_checkpoint(dir: &Path, config_sha256: &str, inputs_sha256: &str) -> Option<FitState> {
-    let path = dir.join(CHECKPOINT_FILE);
-    let text = std::fs::read_to_string(&path).ok()?;
-    let cp: Checkpoint = match serde_json::from_str(&text) {
-        Ok(cp) => cp,
-        Err(e) => {
-            tracing::warn!("{}: unreadable checkpoint ignored: {e}", path.display());
-            return None;
-        }
-    };
-    if cp.format != CHECKPOINT_FORMAT || cp.config_sha256 != config_sha256 || cp.inputs_sha256 != inputs_sha256 {
-        eprintln!("[object] checkpoint belongs to another config or other inputs; starting afresh");
-        return None;
-    }
-    Some(cp.state)
+    checkpoint::resumable(dir, "object", CHECKPOINT_FORMAT, config_sha256, inputs_sha256)
 }
 
 /// Runs the stage.
@@ -83,15 +57,8 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     if let Some(state) = &resume {
         eprintln!("[object] resuming from the checkpoint at iteration {}", state.iteration);
     }
-    let checkpoint_path = ctx.dir.join(CHECKPOINT_FILE);
     let mut on_checkpoint = |state: &FitState| -> Result<(), FitError> {
-        let cp = Checkpoint {
-            format: CHECKPOINT_FORMAT.into(),
-            config_sha256: ctx.config_sha256.clone(),
-            inputs_sha256: ctx.inputs_sha256.clone(),
-            state: state.clone(),
-        };
-        write_json_atomic(&checkpoint_path, &cp).map_err(|e| FitError::Checkpoint(e.to_string()))?;
+        checkpoint::write(ctx, CHECKPOINT_FORMAT, state).map_err(|e| FitError::Checkpoint(e.to_string()))?;
         tracing::debug!(iteration = state.iteration, "checkpoint written");
         Ok(())
     };
@@ -136,11 +103,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     write_json_atomic(&ctx.dir.join(MATERIALS_FILE), &materials)?;
     write_json_atomic(&ctx.dir.join(HISTORY_FILE), &history)?;
     // The result is on disk; the checkpoint has served its purpose.
-    if let Err(e) = std::fs::remove_file(&checkpoint_path)
-        && e.kind() != std::io::ErrorKind::NotFound
-    {
-        return Err(StageError::Io { path: checkpoint_path, source: e });
-    }
+    checkpoint::remove(&ctx.dir)?;
     eprintln!(
         "[object] fitted {} objects ({} emission profile)",
         objects.len(),

@@ -7,8 +7,7 @@ use serde::{Deserialize, Serialize};
 use super::StageError;
 use crate::materials::MaterialsFile;
 
-/// The checkpoint's file name.
-pub const CHECKPOINT_FILE: &str = "checkpoint.json";
+pub use super::checkpoint::CHECKPOINT_FILE;
 /// The result's file name (ipt-materials/1).
 pub const MATERIALS_FILE: &str = "materials.json";
 /// The trajectory's file name.

@@ -13,18 +13,18 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::StageError;
+use super::checkpoint;
 use super::ingest::Ingested;
 use super::object_result::{MATERIALS_FILE, read_result as read_object_result};
 use super::preprocess::Prepared;
+use super::{StageError, remove_if_present};
 use crate::atomic_file::write_json_atomic;
 use crate::runner::StageContext;
 use crate::triangle::{RESULT_FORMAT, RoundInputs, TriangleError, TriangleState};
 
 /// The result's file name.
 pub const RESULT_FILE: &str = "result.json";
-/// The checkpoint's file name.
-pub const CHECKPOINT_FILE: &str = "checkpoint.json";
+pub use super::checkpoint::CHECKPOINT_FILE;
 /// Format tag of the checkpoint.
 pub const CHECKPOINT_FORMAT: &str = "ipt-triangle-checkpoint/1";
 
@@ -33,16 +33,6 @@ pub const CHECKPOINT_FORMAT: &str = "ipt-triangle-checkpoint/1";
 #[serde(deny_unknown_fields)]
 pub struct ResultFile {
     pub format: String,
-    pub state: TriangleState,
-}
-
-/// `checkpoint.json`.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Checkpoint {
-    pub format: String,
-    pub config_sha256: String,
-    pub inputs_sha256: String,
     pub state: TriangleState,
 }
 
@@ -63,27 +53,7 @@ pub fn read_result(run_dir: &Path) -> Result<Option<TriangleState>, StageError> 
 }
 
 fn resumable(dir: &Path, config_sha256: &str, inputs_sha256: &str) -> Option<TriangleState> {
-    let path = dir.join(CHECKPOINT_FILE);
-    let text = std::fs::read_to_string(&path).ok()?;
-    let cp: Checkpoint = match serde_json::from_str(&text) {
-        Ok(cp) => cp,
-        Err(e) => {
-            tracing::warn!("{}: unreadable checkpoint ignored: {e}", path.display());
-            return None;
-        }
-    };
-    if cp.format != CHECKPOINT_FORMAT || cp.config_sha256 != config_sha256 || cp.inputs_sha256 != inputs_sha256 {
-        eprintln!("[triangle] checkpoint belongs to another config or other inputs; starting afresh");
-        return None;
-    }
-    Some(cp.state)
-}
-
-fn remove_if_present(path: PathBuf) -> Result<(), StageError> {
-    match std::fs::remove_file(&path) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(StageError::Io { path, source: e }),
-        _ => Ok(()),
-    }
+    checkpoint::resumable(dir, "triangle", CHECKPOINT_FORMAT, config_sha256, inputs_sha256)
 }
 
 /// Runs the stage.
@@ -91,7 +61,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let plan = ctx.plan;
     if !plan.triangle.enabled {
         remove_if_present(ctx.dir.join(RESULT_FILE))?;
-        remove_if_present(ctx.dir.join(CHECKPOINT_FILE))?;
+        checkpoint::remove(&ctx.dir)?;
         eprintln!("[triangle] disabled (triangle.enabled = false); export uses the per-object result");
         return Ok(Vec::new());
     }
@@ -127,15 +97,8 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         .map_err(triangle_err)?,
     };
     let before = scene_data.triangles.len();
-    let checkpoint_path = ctx.dir.join(CHECKPOINT_FILE);
     let mut on_round = |s: &TriangleState| -> Result<(), TriangleError> {
-        let cp = Checkpoint {
-            format: CHECKPOINT_FORMAT.into(),
-            config_sha256: ctx.config_sha256.clone(),
-            inputs_sha256: ctx.inputs_sha256.clone(),
-            state: s.clone(),
-        };
-        write_json_atomic(&checkpoint_path, &cp).map_err(|e| TriangleError::Checkpoint(e.to_string()))
+        checkpoint::write(ctx, CHECKPOINT_FORMAT, s).map_err(|e| TriangleError::Checkpoint(e.to_string()))
     };
     let bar = indicatif::ProgressBar::new(u64::from(plan.triangle.rounds) + 1);
     bar.set_style(
@@ -145,7 +108,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let state = crate::triangle::run_rounds(&inputs, state, &mut on_round, &bar).map_err(triangle_err)?;
     bar.finish_and_clear();
     write_json_atomic(&ctx.dir.join(RESULT_FILE), &ResultFile { format: RESULT_FORMAT.into(), state: state.clone() })?;
-    remove_if_present(checkpoint_path)?;
+    checkpoint::remove(&ctx.dir)?;
     eprintln!("[triangle] {before} → {} triangles", state.triangles.len());
     Ok(vec![PathBuf::from("triangle").join(RESULT_FILE)])
 }
