@@ -156,28 +156,7 @@ pub fn solve_step_pinned(
             lo: &lo,
             hi: &hi,
         };
-        linear::solve(&problem, opts.loss, &mut var, opts.irls_iters);
-        // Relaxed lasso: the penalty only selects which objects emit; on that support the emission is solved
-        // again without it. A penalty left on a true light shrinks it, and in the joint Gauss–Newton step that
-        // pull is a force along the albedo/emission valley (dimmer light, brighter walls) that nothing else
-        // in the data opposes strongly.
-        for k in 0..k_count {
-            if var[k] == 0.0 {
-                hi[k] = 0.0;
-            }
-            penalty[k] = 0.0;
-        }
-        let problem = Problem {
-            cols: &cols,
-            target: &target,
-            second: Some((&cols2, &target2)),
-            penalty: &penalty,
-            prox: &prox,
-            anchor: &anchor,
-            lo: &lo,
-            hi: &hi,
-        };
-        linear::solve(&problem, opts.loss, &mut var, opts.irls_iters);
+        solve_relaxed_lasso(problem, k_count, opts, &mut var);
         for k in 0..k_count {
             x[idx(k, EMISSION + c)] = var[k];
         }
@@ -297,26 +276,22 @@ pub fn coupled_step(
         lo: &lo,
         hi: &hi,
     };
-    linear::solve(&problem, opts.loss, &mut var, opts.irls_iters);
-    for i in 0..n_emission {
-        if var[i] == 0.0 {
-            hi[i] = 0.0;
-        }
-        penalty[i] = 0.0;
-    }
-    let problem = Problem {
-        cols: &cols,
-        target: &target,
-        second: Some((&cols2, &target2)),
-        penalty: &penalty,
-        prox: &prox,
-        anchor: &anchor,
-        lo: &lo,
-        hi: &hi,
-    };
-    linear::solve(&problem, opts.loss, &mut var, opts.irls_iters);
+    solve_relaxed_lasso(problem, n_emission, opts, &mut var);
     for (v, value) in vars.iter().zip(var) {
         x[idx(v.0, v.1)] = value;
     }
     Ok(loss)
+}
+
+/// Relaxed lasso over the first `n_emission` unknowns (the emissions): `problem` is solved with its penalty,
+/// which only selects which objects emit; on that support the emission is solved again without it. A penalty
+/// left on a true light shrinks it, and in the joint Gauss–Newton step that pull is a force along the
+/// albedo/emission valley (dimmer light, brighter walls) that nothing else in the data opposes strongly.
+fn solve_relaxed_lasso(problem: Problem<'_>, n_emission: usize, opts: &SolveOptions, var: &mut [f64]) {
+    linear::solve(&problem, opts.loss, var, opts.irls_iters);
+    let hi: Vec<f64> =
+        problem.hi.iter().enumerate().map(|(i, &h)| if i < n_emission && var[i] == 0.0 { 0.0 } else { h }).collect();
+    let penalty: Vec<f64> =
+        problem.penalty.iter().enumerate().map(|(i, &p)| if i < n_emission { 0.0 } else { p }).collect();
+    linear::solve(&Problem { penalty: &penalty, hi: &hi, ..problem }, opts.loss, var, opts.irls_iters);
 }
