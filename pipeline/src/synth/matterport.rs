@@ -117,12 +117,12 @@ pub fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> Option<Affine3A> {
 }
 
 /// A linear RGB image as a single-part 32-bit float EXR file in memory.
-pub fn exr_bytes(path: &Path, width: u32, height: u32, rgb: &[Vec3]) -> Result<Vec<u8>, SynthError> {
+pub fn exr_bytes(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<Vec<u8>, SynthError> {
     use exr::prelude::*;
     let (w, h) = (width as usize, height as usize);
     let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
-        let c = rgb[p.y() * w + p.x()];
-        (c.x, c.y, c.z)
+        let i = 3 * (p.y() * w + p.x());
+        (rgb[i], rgb[i + 1], rgb[i + 2])
     });
     let image = Image::from_channels((w, h), channels);
     let mut buf = std::io::Cursor::new(Vec::new());

@@ -256,19 +256,9 @@ pub fn generate(desc_path: &Path, out_dir: &Path) -> Result<(), SynthError> {
         &cam_dir.join(format!("{id}.conf")),
         matterport::conf_text(&built.desc, &built.cameras).as_bytes(),
     )?;
-    for (k, cam) in built.cameras.iter().enumerate() {
-        // One iteration index per view keeps the views' noise independent.
-        let rgb = tracer::render_image(
-            &built.scene,
-            &built.params,
-            cam,
-            built.desc.spp,
-            &built.settings,
-            built.desc.seed,
-            k as u64,
-        )?;
+    for (k, img) in photos(&built)?.iter().enumerate() {
         let path = img_dir.join(matterport::image_names(&built.desc, k).0);
-        let bytes = matterport::exr_bytes(&path, cam.width, cam.height, &rgb)?;
+        let bytes = matterport::exr_bytes(&path, img.width, img.height, &img.rgb)?;
         matterport::write_file(&path, &bytes)?;
     }
     matterport::write_file(&out_dir.join("ground_truth_materials.json"), &json(&ground_truth_json(&built)))?;
@@ -283,6 +273,7 @@ pub fn photos(built: &BuiltScene) -> Result<Vec<ingest::photo::LinearImage>, Syn
         .iter()
         .enumerate()
         .map(|(k, cam)| {
+            // One iteration index per view keeps the views' noise independent.
             let rgb = tracer::render_image(
                 &built.scene,
                 &built.params,
