@@ -15,19 +15,7 @@ fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends()
     let built = pipeline::synth::build(desc, &path).unwrap();
     let images = pipeline::synth::photos(&built).unwrap();
     let k = built.desc.objects.len();
-    // Start from the true per-object values (the object stage's job); checker objects start at their mean.
-    let params = tracer::Params {
-        materials: built.params.materials[..k].to_vec(),
-        emission: built.params.emission[..k].to_vec(),
-    };
-    let start = TriangleState::from_objects(
-        built.mesh.positions.clone(),
-        Some(built.mesh.normals.clone()),
-        built.mesh.triangles.clone(),
-        built.mesh.object_of_tri.clone(),
-        &params,
-    )
-    .unwrap();
+    let start = pipeline::synth::true_triangle_start(&built).unwrap();
     let config = TriangleConfig { rounds: 2, fit_steps: 2, spp: 8, ..TriangleConfig::default() };
     let object = pipeline::fit::ObjectFitSettings::default();
     let specular = vec![false; k];

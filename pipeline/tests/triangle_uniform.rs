@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use pipeline::config::TriangleConfig;
-use pipeline::triangle::{RoundInputs, TriangleState, run_rounds};
+use pipeline::triangle::{RoundInputs, run_rounds};
 
 #[test]
 fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
@@ -18,19 +18,7 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     let built = pipeline::synth::build(desc, &path).unwrap();
     let images = pipeline::synth::photos(&built).unwrap();
     let k = built.desc.objects.len();
-    // The per-object result: the true values (the object stage's job, tested elsewhere).
-    let params = tracer::Params {
-        materials: built.params.materials[..k].to_vec(),
-        emission: built.params.emission[..k].to_vec(),
-    };
-    let start = TriangleState::from_objects(
-        built.mesh.positions.clone(),
-        Some(built.mesh.normals.clone()),
-        built.mesh.triangles.clone(),
-        built.mesh.object_of_tri.clone(),
-        &params,
-    )
-    .unwrap();
+    let start = pipeline::synth::true_triangle_start(&built).unwrap();
     let config = TriangleConfig::default();
     let object = pipeline::fit::ObjectFitSettings::default();
     let specular = vec![false; k];
@@ -50,10 +38,10 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     let mut n = 0usize;
     for (t, m) in out.materials.iter().enumerate() {
         let o = out.face_object[t] as usize;
-        if params.emission[o].max_element() > 0.0 {
+        if built.params.emission[o].max_element() > 0.0 {
             continue;
         }
-        let e = (m.base_color - params.materials[o].base_color).abs();
+        let e = (m.base_color - built.params.materials[o].base_color).abs();
         worst = worst.max(e.max_element());
         sum += f64::from(e.element_sum()) / 3.0;
         n += 1;

@@ -329,3 +329,22 @@ pub fn fit(
     };
     crate::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &indicatif::ProgressBar::hidden())
 }
+
+/// The per-triangle stage's start on a synthetic scene with its true per-object values (what the object stage
+/// recovers; checker objects at their mean colour): the common start of the tests of the per-triangle stage.
+pub fn true_triangle_start(
+    built: &BuiltScene,
+) -> Result<crate::triangle::TriangleState, crate::triangle::TriangleError> {
+    let k = built.desc.objects.len();
+    let params = tracer::Params {
+        materials: built.params.materials[..k].to_vec(),
+        emission: built.params.emission[..k].to_vec(),
+    };
+    crate::triangle::TriangleState::from_objects(
+        built.mesh.positions.clone(),
+        Some(built.mesh.normals.clone()),
+        built.mesh.triangles.clone(),
+        built.mesh.object_of_tri.clone(),
+        &params,
+    )
+}
