@@ -3,6 +3,8 @@
 //! SIGKILL during `object` → the rerun resumes from the checkpoint and ends with exactly the result of an
 //! uninterrupted run with the same seed.
 
+mod common;
+use common::{decisions, pipeline};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
@@ -22,21 +24,6 @@ fn write_config(dir: &Path, iterations: u32) -> PathBuf {
     );
     std::fs::write(&cfg, text).unwrap();
     cfg
-}
-
-fn pipeline(args: &[&str]) -> (i32, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_pipeline")).args(args).env_remove("RUST_LOG").output().unwrap();
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stderr).into_owned())
-}
-
-fn decisions(stderr: &str, what: &str) -> Vec<String> {
-    stderr
-        .lines()
-        .filter_map(|l| {
-            let (stage, rest) = l.strip_prefix('[')?.split_once("] ")?;
-            rest.starts_with(what).then(|| stage.to_owned())
-        })
-        .collect()
 }
 
 fn json(path: &Path) -> serde_json::Value {

@@ -2,8 +2,9 @@
 //! rerun decisions for ingest and preprocess, the artefacts they leave, and `pipeline render` reproducing the
 //! scan's photos from its ground-truth materials.
 
+mod common;
+use common::{decisions, pipeline};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 fn fixture() -> PathBuf {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../data-fixtures/demo")).to_path_buf()
@@ -19,22 +20,6 @@ fn copy_dir(from: &Path, to: &Path) {
             std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
         }
     }
-}
-
-fn pipeline(args: &[&str]) -> (i32, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_pipeline")).args(args).env_remove("RUST_LOG").output().unwrap();
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stderr).into_owned())
-}
-
-/// The stages a run reports as running / skipped, from its `[stage] running:` / `[stage] skipped:` lines.
-fn decisions(stderr: &str, what: &str) -> Vec<String> {
-    stderr
-        .lines()
-        .filter_map(|l| {
-            let (stage, rest) = l.strip_prefix('[')?.split_once("] ")?;
-            rest.starts_with(what).then(|| stage.to_owned())
-        })
-        .collect()
 }
 
 #[test]

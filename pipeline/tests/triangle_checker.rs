@@ -8,19 +8,15 @@
 //! The run directory's `export/`, `triangle/result.json` and `ingest/scene.json` are copied to
 //! `target/triangle_checker/` for tests/validation/test_triangle_export.py.
 
+mod common;
+use common::pipeline;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use glam::Vec3;
 use ingest::ply::FaceValues;
 
 fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn pipeline(args: &[&str]) -> (i32, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_pipeline")).args(args).env_remove("RUST_LOG").output().unwrap();
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stderr).into_owned())
 }
 
 fn f32_col(mesh: &ingest::ply::PlyMesh, name: &str) -> Vec<f32> {
