@@ -12,7 +12,7 @@
 //!   incoherent rays over the same scene: origins uniform in the room's air above the heightfield,
 //!   directions uniform on the sphere; shadow rays get a uniform length in [0.1, 1.5]. Rays are split into
 //!   chunks of 4096 over the thread pool.
-//! - `path_tracing`: `Renderer::render_pixels`, 96 × 96 pixels × 8 spp, max depth 8, roulette from depth 3.
+//! - `path_tracing`: `Renderer::render_pixels`, 96 × 96 pixels × 16 spp, max depth 8, roulette from depth 3.
 //! - `gradient_paths`: `Renderer::gradient_pixels` over the same pixels and spp (all weights 1).
 //! - `path_tracing_all_lambert`: path tracing with the heightfield made Lambertian (separates BSDF cost from
 //!   integrator overhead).
@@ -27,12 +27,22 @@
 //! records and backward pass for gradients, rayon) is inside `seconds`. The `*_cpu*` columns repeat the
 //! rates and the comparison with CPU time (summed over threads) instead of wall time: on a shared machine
 //! other processes' load stretches wall time, not CPU time, so the CPU-based fraction is the steadier one.
+//! `replay_seconds`, `replay_cpu_seconds`: the best replay of the run's rays; `fraction_of_replay(_cpu)`:
+//! replay time / tracer time (the goal is ≥ 0.5: at least half of the path tracer's time is Embree's).
 //!
-//! Caveat: random rays from the room's air are not the tracer's rays. Bounce and shadow rays start on the
-//! dense heightfield, where Embree is slower (an earlier version of this bench measured cosine-distributed rays from
-//! random heightfield points at ~40 % of the random rate), while camera rays and the pixel-ordered paths are more coherent and cache-friendly.
-//! The ceiling is thus a fixed, reproducible yardstick for the tracer's overhead, not the exact Embree cost
-//! of its own rays.
+//! - `embree_replay_<run>` for each tracer run: raw Embree on *the tracer's own rays*. Each tracer run is
+//!   executed once more on one thread under `tracer::embree::ray_log::record` (feature `ray-log`, enabled for
+//!   this bench by tracer's dev-dependency on itself; not timed), which logs every query in order; the replay
+//!   sends exactly those queries (same origins, directions, ranges, closest-hit or occlusion) through the
+//!   same safe wrappers, in the same order, chunked over the pool like the random rays.
+//!
+//! Two ceilings, because random rays from the room's air are not the tracer's rays: bounce and shadow rays
+//! start on the dense heightfield, where Embree is slower (an earlier version of this bench measured
+//! cosine-distributed rays from random heightfield points at ~40 % of the random rate), while camera rays and
+//! pixel-ordered paths are more coherent. The random-ray ceiling is a fixed yardstick independent of the
+//! tracer; the replay ceiling answers the question the target asks — which share of the path tracer's time is
+//! Embree's own work on the rays it must trace — and `fraction_of_replay` = replay time / tracer time is that
+//! share (everything else is the tracer's overhead).
 //!
 //! Timing: all measurements of one thread count are interleaved over `ROUNDS` rounds and the fastest of
 //! each is kept, so that background load (other builds on a shared machine) affects them alike.
@@ -40,6 +50,7 @@
 use glam::{Affine3A, Mat4, Vec3};
 use rayon::prelude::*;
 use std::time::Instant;
+use tracer::embree::ray_log::{self, LoggedRay};
 use tracer::rng::{PathSampler, PixelKey, Stream};
 use tracer::{Camera, Material, Params, PixelRef, Renderer, Scene, SceneInput, TraceStats, TracerSettings};
 
@@ -151,6 +162,24 @@ const RAW_INTERSECT: &str = "embree_intersect1";
 const RAW_OCCLUDED: &str = "embree_occluded1";
 const TRACER_RUNS: [&str; 3] = ["path_tracing", "gradient_paths", "path_tracing_all_lambert"];
 
+/// Sends recorded queries through raw Embree in their recorded order, chunked over the current pool; returns
+/// the number of hits and occlusions (kept so that the work cannot be optimised away).
+fn replay(scene: &Scene, log: &[LoggedRay]) -> usize {
+    log.par_chunks(4096)
+        .map(|c| {
+            c.iter()
+                .filter(|r| {
+                    if r.shadow {
+                        scene.embree().occluded(r.org, r.dir, r.tnear, r.tfar)
+                    } else {
+                        scene.embree().intersect(r.org, r.dir, r.tnear, r.tfar).is_some()
+                    }
+                })
+                .count()
+        })
+        .sum()
+}
+
 fn main() {
     // `cargo bench` passes `--bench`; the first other argument, if any, filters measurements.
     let filter = std::env::args().skip(1).find(|a| !a.starts_with('-'));
@@ -176,20 +205,44 @@ fn main() {
     let pixels: Vec<PixelRef> = (0..size).flat_map(|y| (0..size).map(move |x| PixelRef { view: 0, x, y })).collect();
     let weights = vec![Vec3::ONE; pixels.len()];
     let settings = TracerSettings { max_depth: 8, rr_depth: 3, ..Default::default() };
-    let spp = 8;
+    let spp = 16;
     let mut lambert = params.clone();
     lambert.materials[0].metallic = 0.0;
     lambert.materials[0].specular = 0.0;
 
+    // The three tracer runs, each returning its work counters.
+    let run = |k: usize| -> TraceStats {
+        let p = if k == 2 { &lambert } else { &params };
+        let r = Renderer::new(&scene, p, &settings).expect("renderer");
+        if k == 1 {
+            r.gradient_pixels(&[cam], &pixels, &weights, spp, 1, 0).expect("gradient").1
+        } else {
+            r.render_pixels(&[cam], &pixels, spp, 1, 0).expect("render").1
+        }
+    };
+    // Each run's own Embree queries, recorded once on one thread (in path order; not timed).
+    let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
+    let logged: Vec<Vec<LoggedRay>> = (0..TRACER_RUNS.len())
+        .map(|k| {
+            if wanted(TRACER_RUNS[k], 1) || wanted(TRACER_RUNS[k], 2) {
+                one_thread.install(|| ray_log::record(|| run(k)).1)
+            } else {
+                Vec::new()
+            }
+        })
+        .collect();
+
     let mut rows = vec![
         "measurement,threads,triangles,seconds,cpu_seconds,rays,shadow_fraction,rays_per_s,paths_per_s,\
-         ceiling_rays_per_s,fraction_of_ceiling,rays_per_cpu_s,ceiling_rays_per_cpu_s,fraction_of_ceiling_cpu"
+         ceiling_rays_per_s,fraction_of_ceiling,rays_per_cpu_s,ceiling_rays_per_cpu_s,fraction_of_ceiling_cpu,\
+         replay_seconds,replay_cpu_seconds,fraction_of_replay,fraction_of_replay_cpu"
             .to_string(),
     ];
     for threads in [1usize, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
-        // Best seconds of: raw intersect, raw occluded, then the tracer runs in TRACER_RUNS order.
-        let mut t = [Best::NONE; 5];
+        // Best seconds of: raw intersect, raw occluded, then the tracer runs in TRACER_RUNS order, then their
+        // replays in the same order.
+        let mut t = [Best::NONE; 8];
         let mut stats = [TraceStats::default(); 3];
         let run_raw = [wanted(RAW_INTERSECT, threads), wanted(RAW_OCCLUDED, threads)];
         let run_tracer = TRACER_RUNS.map(|name| wanted(name, threads));
@@ -214,18 +267,13 @@ fn main() {
                             .sum::<usize>()
                     });
                 }
-                for (k, p) in [&params, &params, &lambert].into_iter().enumerate() {
+                for k in 0..TRACER_RUNS.len() {
                     if !run_tracer[k] {
                         continue;
                     }
-                    stats[k] = timed(&mut t[2 + k], || {
-                        let r = Renderer::new(&scene, p, &settings).expect("renderer");
-                        if k == 1 {
-                            r.gradient_pixels(&[cam], &pixels, &weights, spp, 1, 0).expect("gradient").1
-                        } else {
-                            r.render_pixels(&[cam], &pixels, spp, 1, 0).expect("render").1
-                        }
-                    });
+                    stats[k] = timed(&mut t[2 + k], || run(k));
+                    let hits = timed(&mut t[5 + k], || replay(&scene, &logged[k]));
+                    assert!(hits > 0);
                 }
             }
         });
@@ -235,7 +283,7 @@ fn main() {
         for (k, name) in [RAW_INTERSECT, RAW_OCCLUDED].into_iter().enumerate() {
             if let (Some(rate), Some(rate_cpu)) = (raw_rate[k], raw_rate_cpu[k]) {
                 rows.push(format!(
-                    "{name},{threads},{tris},{:.4},{:.4},{n_rays},{k},{rate:.0},,,,{rate_cpu:.0},,",
+                    "{name},{threads},{tris},{:.4},{:.4},{n_rays},{k},{rate:.0},,,,{rate_cpu:.0},,,,,,",
                     t[k].wall, t[k].cpu
                 ));
             }
@@ -244,7 +292,8 @@ fn main() {
             if !run_tracer[k] {
                 continue;
             }
-            let (st, best) = (stats[k], t[2 + k]);
+            let (st, best, rb) = (stats[k], t[2 + k], t[5 + k]);
+            assert_eq!(st.rays, logged[k].len() as u64, "the replay holds every query of the run");
             let f = st.shadow_rays as f64 / st.rays as f64;
             // Raw Embree's rate on the same mix of closest-hit and shadow rays (harmonic, by time per ray).
             let ceiling = |r: [Option<f64>; 2], secs: f64| match r {
@@ -257,13 +306,26 @@ fn main() {
             let (c_wall, frac_wall) = ceiling(raw_rate, best.wall);
             let (c_cpu, frac_cpu) = ceiling(raw_rate_cpu, best.cpu);
             rows.push(format!(
-                "{name},{threads},{tris},{:.4},{:.4},{},{f:.4},{:.0},{:.0},{c_wall},{frac_wall},{:.0},{c_cpu},{frac_cpu}",
+                "{name},{threads},{tris},{:.4},{:.4},{},{f:.4},{:.0},{:.0},{c_wall},{frac_wall},{:.0},{c_cpu},{frac_cpu},\
+                 {:.4},{:.4},{:.3},{:.3}",
                 best.wall,
                 best.cpu,
                 st.rays,
                 st.rays as f64 / best.wall,
                 st.paths as f64 / best.wall,
                 st.rays as f64 / best.cpu,
+                rb.wall,
+                rb.cpu,
+                rb.wall / best.wall,
+                rb.cpu / best.cpu,
+            ));
+            rows.push(format!(
+                "embree_replay_{name},{threads},{tris},{:.4},{:.4},{},{f:.4},{:.0},,,,{:.0},,,,,,",
+                rb.wall,
+                rb.cpu,
+                st.rays,
+                st.rays as f64 / rb.wall,
+                st.rays as f64 / rb.cpu,
             ));
         }
     }

@@ -6,6 +6,8 @@
 //! what makes [`TriangleScene`] `Send + Sync`.
 
 mod ffi;
+#[cfg(feature = "ray-log")]
+pub mod ray_log;
 
 use glam::Vec3;
 use std::ffi::CStr;
@@ -191,6 +193,8 @@ impl TriangleScene {
     #[inline]
     #[must_use]
     pub fn intersect(&self, org: Vec3, dir: Vec3, tnear: f32, tfar: f32) -> Option<RayHit> {
+        #[cfg(feature = "ray-log")]
+        ray_log::log(org, dir, tnear, tfar, false);
         let mut rh = ffi::RTCRayHit {
             ray: ray(org, dir, tnear, tfar),
             hit: ffi::RTCHit {
@@ -214,6 +218,8 @@ impl TriangleScene {
     #[inline]
     #[must_use]
     pub fn occluded(&self, org: Vec3, dir: Vec3, tnear: f32, tfar: f32) -> bool {
+        #[cfg(feature = "ray-log")]
+        ray_log::log(org, dir, tnear, tfar, true);
         let mut r = ray(org, dir, tnear, tfar);
         // SAFETY: the scene is committed; `r` is a properly sized, 16-byte aligned RTCRay.
         unsafe { ffi::rtcOccluded1(self.scene, &mut r, std::ptr::null_mut()) };
