@@ -1,13 +1,16 @@
 //! "Uniform objects stay as they are" (issues 6 and 7): on the default scene (data-fixtures/scenes/demo.toml,
-//! every object one colour) the per-triangle stage, started from the per-object values, leaves every triangle of
-//! every non-emitting object within a noise-derived tolerance of its object's value (the split test is not
-//! asserted here: it still makes 3 false splits on this scene). In-memory scene with 256-path photos; the stage
-//! runs with its default settings.
+//! every object one colour) the per-triangle stage, started from the per-object values, (1) splits no triangle
+//! and (2) leaves every triangle of every non-emitting object within a noise-derived tolerance of its object's
+//! value. The split test is Holm-corrected at family-wise level `split_significance` = 0.01 per round, so for
+//! any seed a round splits a uniform scene with probability ≤ 1 % (≤ 3 % over the 3 split decisions); the run
+//! is seeded, so zero is asserted. (3) The assumption behind that guarantee holds on this scene's renders: the
+//! split test's p-values of the final state are not smaller than uniform ones (residual noise independent per
+//! pixel, the F test calibrated). In-memory scene with 256-path photos; the stage runs with its default settings.
 
 use std::path::Path;
 
 use pipeline::config::TriangleConfig;
-use pipeline::triangle::{RoundInputs, run_rounds};
+use pipeline::triangle::{RoundInputs, fit, pixels, run_rounds, split};
 
 #[test]
 fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
@@ -31,7 +34,13 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
         specular: &specular,
     };
     let bar = indicatif::ProgressBar::hidden();
-    let out = run_rounds(&inputs, start, &mut |_| Ok(()), &bar).unwrap();
+    let out = run_rounds(&inputs, start.clone(), &mut |_| Ok(()), &bar).unwrap();
+
+    // (1) No split: every round marked nothing, the mesh is the scan's.
+    let marked: Vec<usize> = out.log.iter().map(|r| r.marked).collect();
+    eprintln!("marked per round: {marked:?}");
+    assert!(marked.iter().all(|&m| m == 0), "false splits on a uniform scene: {marked:?}");
+    assert_eq!(out.triangles, start.triangles);
 
     let mut worst = 0.0f32;
     let mut sum = 0.0f64;
@@ -55,9 +64,29 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     // Tolerances, from the noise of this scene: a triangle's own estimate from its few dozen pixels at the
     // stage's 32 render paths scatters by ~0.02 (measured without shrinkage: mean |error| 0.022, worst 0.198 on
     // the ceiling, which only 84 pixels see). Held at its object's value a triangle carries only the
-    // object-level noise (measured: mean 0.0012, worst 0.043, the ceiling). The mean bound sits at half the
+    // object-level noise (measured: mean 0.0012, worst 0.043, the ceiling, over 3 rounds with the former false
+    // splits; mean 0.00068, worst 0.020 in the 1 round the stage now runs). The mean bound sits at half the
     // per-triangle noise, so a stage that passed per-triangle noise through fails it; the worst-case bound is
     // the measured worst with margin for another seed, far below the 0.198 of the unshrunk estimates.
     assert!(mean < 0.01, "mean per-triangle albedo error {mean:.4}: per-triangle noise was not held back");
     assert!(worst < 0.08, "worst per-triangle albedo error {worst:.4}");
+
+    // (3) The split test's p-values on a fresh fit of the final state (render key of a round the stage did not
+    // use). Under independent pixel noise each triangle's p (3 × its smallest per-channel p-value, Bonferroni)
+    // satisfies P(p < x) ≤ x, so the count below 5 % is at most binomial(m, 0.05): bounded here at its mean + 4
+    // standard deviations (a seeded run; exceeding it means the residuals carry structure the test mistakes
+    // for texture). Measured: see the module docs of pipeline::triangle.
+    let mut state = out.clone();
+    let scene = state.scene().unwrap();
+    let pix = pixels::collect(&scene, &built.cameras, &images);
+    let fitted = fit::fit_round(&inputs, &scene, &pix, &mut state, config.rounds + 1).unwrap();
+    let ev = split::evidence(state.triangles.len(), &pix, &fitted);
+    let p: Vec<f64> = ev.iter().zip(&fitted.free).filter(|(_, f)| **f).filter_map(|(e, _)| e.map(|e| e.p)).collect();
+    let m = p.len() as f64;
+    let below = p.iter().filter(|&&x| x < 0.05).count() as f64;
+    let min = p.iter().copied().fold(1.0f64, f64::min);
+    eprintln!("{m} triangles tested: {below} with p < 0.05 (uniform: {:.1}); smallest p {min:.2e}", 0.05 * m);
+    // 226 are testable on this scene; far fewer would mean the pixel collection broke and the count says little.
+    assert!(m > 100.0, "only {m} triangles testable");
+    assert!(below <= 0.05 * m + 4.0 * (0.05 * 0.95 * m).sqrt(), "{below} of {m} triangles with p < 0.05");
 }

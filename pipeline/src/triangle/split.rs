@@ -1,10 +1,12 @@
-//! The split decision (F test of residual structure against noise, pixel footprint, budget) and the mesh
-//! update (subdivision, inherited parameters, midpoint normals). See the module docs of [`crate::triangle`].
+//! The split decision (F test of residual structure against noise, Holm-corrected over the triangles tested;
+//! contrast; pixel footprint; budget) and the mesh update (subdivision, inherited parameters, midpoint
+//! normals). See the module docs of [`crate::triangle`].
 
 use glam::{DVec3, Vec3};
 
 use super::fit::Fitted;
 use super::pixels::TriSample;
+use super::significance::{f_survival, holm};
 use super::{RoundInputs, TriangleError, TriangleState};
 use crate::subdivide::{SplitLimits, SubdivideMesh, Subdivided, subdivide};
 
@@ -16,10 +18,34 @@ const MAX_GROWTH_PER_MARK: usize = 6;
 /// footprint the F test would accept; it only guards against degenerate splits (subdivide needs a limit > 0).
 const MIN_EDGE_RELATIVE: f32 = 1e-6;
 
-/// One-way ANOVA F statistic of `groups` (values per group): between-group mean square over within-group mean
-/// square. `None` when fewer than 2 groups are non-empty or there are no within-group degrees of freedom.
+/// Colour channels tested per triangle: the per-channel p-values are Bonferroni-combined (× 3), valid whatever
+/// the correlation between the channels (their noise comes from the same paths, so it is correlated).
+const CHANNELS: f64 = 3.0;
+
+/// A one-way ANOVA: the F statistic and its degrees of freedom (between groups, within groups).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Anova {
+    pub f: f64,
+    /// k − 1 for k non-empty groups.
+    pub df_between: usize,
+    /// n − k for n values.
+    pub df_within: usize,
+}
+
+impl Anova {
+    /// P(F(df_between, df_within) > f): the probability of an F this large when all groups share one mean
+    /// (independent normal values of equal variance).
+    #[must_use]
+    pub fn p_value(&self) -> f64 {
+        f_survival(self.f, self.df_between as f64, self.df_within as f64)
+    }
+}
+
+/// One-way ANOVA of `groups` (values per group): between-group mean square over within-group mean square,
+/// with its degrees of freedom. `None` when fewer than 2 groups are non-empty or there are no within-group
+/// degrees of freedom.
 #[must_use]
-pub fn anova_f(groups: &[Vec<f64>]) -> Option<f64> {
+pub fn anova(groups: &[Vec<f64>]) -> Option<Anova> {
     let used: Vec<&Vec<f64>> = groups.iter().filter(|g| !g.is_empty()).collect();
     let k = used.len();
     let n: usize = used.iter().map(|g| g.len()).sum();
@@ -36,13 +62,20 @@ pub fn anova_f(groups: &[Vec<f64>]) -> Option<f64> {
     }
     let ms_between = between / (k - 1) as f64;
     let ms_within = within / (n - k) as f64;
-    if ms_within > 0.0 {
-        Some(ms_between / ms_within)
+    let f = if ms_within > 0.0 {
+        ms_between / ms_within
     } else if ms_between > 0.0 {
-        Some(f64::INFINITY)
+        f64::INFINITY
     } else {
-        Some(0.0)
-    }
+        0.0
+    };
+    Some(Anova { f, df_between: k - 1, df_within: n - k })
+}
+
+/// The ANOVA F statistic of `groups` alone ([`anova`]).
+#[must_use]
+pub fn anova_f(groups: &[Vec<f64>]) -> Option<f64> {
+    anova(groups).map(|a| a.f)
 }
 
 /// The evidence for splitting one triangle, from its interior pixels grouped by would-be child.
@@ -50,6 +83,11 @@ pub fn anova_f(groups: &[Vec<f64>]) -> Option<f64> {
 pub struct SplitEvidence {
     /// ANOVA F of the residuals (max over channels): structure over noise.
     pub f: f64,
+    /// The triangle's p-value: the smallest per-channel p-value of the F test (with the channel's degrees of
+    /// freedom), times 3 for the 3 channels (Bonferroni), at most 1. Small = the children differ beyond noise.
+    pub p: f64,
+    /// Interior pixels the test used.
+    pub pixels: usize,
     /// Largest |mean residual of a child − mean residual of the triangle| / mean photo radiance of the triangle
     /// (max over channels): the relative albedo difference between the children that the split would resolve.
     pub contrast: f64,
@@ -73,7 +111,9 @@ pub fn evidence(triangles: usize, samples: &[TriSample], fitted: &Fitted) -> Vec
         .iter()
         .zip(&target)
         .map(|(g, (tsum, tn))| {
-            let f = g.iter().filter_map(|ch| anova_f(ch)).reduce(f64::max)?;
+            let tests: Vec<Anova> = g.iter().filter_map(|ch| anova(ch)).collect();
+            let f = tests.iter().map(|a| a.f).reduce(f64::max)?;
+            let p_min = tests.iter().map(Anova::p_value).reduce(f64::min)?;
             let mut contrast = 0.0f64;
             for (c, ch) in g.iter().enumerate() {
                 let level = tsum[c] / tn.max(1.0);
@@ -88,12 +128,14 @@ pub fn evidence(triangles: usize, samples: &[TriSample], fitted: &Fitted) -> Vec
                     }
                 }
             }
-            Some(SplitEvidence { f, contrast })
+            Some(SplitEvidence { f, p: (CHANNELS * p_min).min(1.0), pixels: *tn as usize, contrast })
         })
         .collect()
 }
 
-/// The triangles to split, highest F first, within the budget.
+/// The triangles to split: those whose children differ significantly after Holm's correction over every
+/// triangle tested in the round (family-wise level `split_significance`) and by more than `split_contrast`,
+/// smallest p first (then largest F), within the budget.
 #[must_use]
 pub fn choose(inputs: &RoundInputs<'_>, state: &TriangleState, samples: &[TriSample], fitted: &Fitted) -> Vec<u32> {
     let cfg = inputs.config;
@@ -106,25 +148,36 @@ pub fn choose(inputs: &RoundInputs<'_>, state: &TriangleState, samples: &[TriSam
         per_view[s.tri as usize * views + s.pixel.view as usize] += 1;
     }
     let best = |t: usize| per_view[t * views..(t + 1) * views].iter().copied().max().unwrap_or(0);
-    let mut marks: Vec<(f64, u32)> = (0..n)
+    // Every triangle tested enters the correction, whatever its contrast: the family is the tests made.
+    let tested: Vec<(usize, SplitEvidence)> = (0..n)
         .filter(|&t| fitted.free[t] && best(t) >= 4 * cfg.min_pixels.max(1))
-        .filter_map(|t| {
-            let e = ev[t]?;
+        .filter_map(|t| Some((t, ev[t]?)))
+        .collect();
+    let p: Vec<f64> = tested.iter().map(|(_, e)| e.p).collect();
+    let significant = holm(&p, cfg.split_significance);
+    let mut marks: Vec<(f64, f64, u32)> = tested
+        .iter()
+        .zip(&significant)
+        .filter_map(|(&(t, e), &sig)| {
             tracing::debug!(
                 triangle = t,
                 object = state.face_object[t],
                 f = e.f,
+                p = e.p,
+                significant = sig,
                 contrast = e.contrast,
+                interior_pixels = e.pixels,
                 best_view_pixels = best(t),
                 "split evidence"
             );
-            (e.f > cfg.split_threshold && e.contrast > cfg.split_contrast).then_some((e.f, t as u32))
+            (sig && e.contrast > cfg.split_contrast).then_some((e.p, e.f, t as u32))
         })
         .collect();
-    marks.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    tracing::debug!(tested = tested.len(), marked = marks.len(), "split test");
+    marks.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.total_cmp(&a.1)).then(a.2.cmp(&b.2)));
     let room = (cfg.max_triangles as usize).saturating_sub(n) / MAX_GROWTH_PER_MARK;
     marks.truncate(room);
-    let mut out: Vec<u32> = marks.into_iter().map(|m| m.1).collect();
+    let mut out: Vec<u32> = marks.into_iter().map(|m| m.2).collect();
     out.sort_unstable();
     out
 }
@@ -179,6 +232,89 @@ pub fn apply(state: &mut TriangleState, marks: &[u32]) -> Result<Subdivided, Tri
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::pixels::uniform;
+
+    /// Seeded standard normal numbers (Box–Muller on [`uniform`]), keyed by (stream, a, b).
+    fn normal(stream: u64, a: u64, b: u64) -> f64 {
+        let u1 = 1.0 - uniform(7, stream, a, 2 * b); // (0, 1]: ln stays finite
+        let u2 = uniform(7, stream, a, 2 * b + 1);
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+
+    /// Groups of pure noise with `sizes` values per child.
+    fn noise_groups(sizes: &[usize; 4], stream: u64, trial: u64, shift: [f64; 4]) -> Vec<Vec<f64>> {
+        let mut k = 0;
+        sizes
+            .iter()
+            .zip(shift)
+            .map(|(&n, d)| {
+                (0..n)
+                    .map(|_| {
+                        k += 1;
+                        normal(stream, trial, k) + d
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn p_values_of_noise_are_uniform_whatever_the_child_sizes_but_a_fixed_f_threshold_is_not() {
+        // Child sizes of the demo's false splits ([2, 1, 0, 5]: F(2, 5); [1, 1, 3, 6]: F(3, 7)) and of a
+        // well-seen triangle (F(3, 86)).
+        let trials = 40_000u64;
+        for (stream, sizes) in [[2, 1, 0, 5], [1, 1, 3, 6], [20, 20, 20, 30]].iter().enumerate() {
+            let (mut below_1, mut below_10, mut f_above_10) = (0u32, 0u32, 0u32);
+            let mut df = (0, 0);
+            for trial in 0..trials {
+                let a = anova(&noise_groups(sizes, stream as u64, trial, [0.0; 4])).unwrap();
+                df = (a.df_between, a.df_within);
+                let p = a.p_value();
+                below_1 += u32::from(p < 0.01);
+                below_10 += u32::from(p < 0.1);
+                f_above_10 += u32::from(a.f > 10.0);
+            }
+            // Binomial counts: 5 standard deviations around the expectation (a seeded test; a fail means the
+            // p-value is miscalibrated, not bad luck, at 5σ).
+            let check = |count: u32, rate: f64, what: &str| {
+                let (mean, sd) = (rate * trials as f64, (rate * (1.0 - rate) * trials as f64).sqrt());
+                assert!((f64::from(count) - mean).abs() < 5.0 * sd + 1.0, "{sizes:?} {what}: {count} vs {mean:.1}");
+            };
+            check(below_1, 0.01, "p < 0.01");
+            check(below_10, 0.1, "p < 0.1");
+            // The former rule F > 10 fires at the F distribution's own tail rate: ~1.8 % of uniform triangles
+            // with 8 pixels in 3 children, ~0.001 % with 90 pixels.
+            let rate = f_survival(10.0, df.0 as f64, df.1 as f64);
+            check(f_above_10, rate, "F > 10");
+        }
+        assert!(f_survival(10.0, 2.0, 5.0) > 0.017 && f_survival(10.0, 3.0, 86.0) < 2e-5);
+    }
+
+    #[test]
+    fn holm_over_many_uniform_triangles_keeps_them_whole_and_finds_a_real_step() {
+        // 600 triangles of pure noise with 3 channels each, sizes cycling through small and large children,
+        // plus one whose corner child is 3 σ brighter (a texture edge). The uniform ones are all rejected
+        // together with probability ≤ 1 % (α = 0.01; seeded, so this run is fixed).
+        let sizes = [[2, 1, 0, 5], [1, 1, 3, 6], [5, 5, 5, 10], [20, 20, 20, 30]];
+        let step = 600u64;
+        let p: Vec<f64> = (0..=step)
+            .map(|t| {
+                let shift = if t == step { [3.0, 0.0, 0.0, 0.0] } else { [0.0; 4] };
+                let sz = &sizes[if t == step { 3 } else { t as usize % 4 }];
+                let min = (0..3)
+                    .map(|c| anova(&noise_groups(sz, 10 + c, t, shift)).unwrap().p_value())
+                    .fold(1.0f64, f64::min);
+                (CHANNELS * min).min(1.0)
+            })
+            .collect();
+        let rejected: Vec<usize> = holm(&p, 0.01).iter().enumerate().filter(|(_, r)| **r).map(|(t, _)| t).collect();
+        assert_eq!(rejected, vec![step as usize], "smallest p-values {:?}", {
+            let mut q = p.clone();
+            q.sort_by(f64::total_cmp);
+            q.truncate(3);
+            q
+        });
+    }
 
     #[test]
     fn f_is_large_for_a_step_and_near_one_for_noise() {
