@@ -59,8 +59,9 @@ pub enum BenchCommand {
 /// `pipeline bench tradeoff`.
 #[derive(Debug, clap::Args)]
 pub struct BenchTradeoffArgs {
-    /// Scenes (`data-fixtures/scenes/<name>.toml`), comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "demo,glossy")]
+    /// Scenes (`data-fixtures/scenes/<name>.toml`), comma-separated; scenes with a textured (checker) object
+    /// also run the per-triangle stage at every point.
+    #[arg(long, value_delimiter = ',', default_value = "demo,glossy,checker")]
     pub scenes: Vec<String>,
     /// Output directory.
     #[arg(long, default_value = "docs/tradeoff")]

@@ -1,6 +1,8 @@
 //! `pipeline bench tradeoff --quick` and `pipeline bench ablation --quick` write well-formed outputs: the CSV
-//! has the documented header and a full row per sweep point with finite accuracy columns, the SVG is one
-//! well-formed document with a marker per point, the markdown names every scene. No timing assertions.
+//! has the documented header and a full row per sweep point with finite accuracy columns (on the textured
+//! `checker` scene also the per-triangle stage's time, face count and texture error), CPU time and load
+//! average; the SVG is one well-formed document with a marker per point, the markdown names every scene. No
+//! timing assertions beyond what must hold on any machine (CPU time ≤ cores × wall time).
 
 use std::path::Path;
 use std::process::Command;
@@ -43,7 +45,7 @@ fn read(dir: &Path, name: &str) -> String {
 fn quick_tradeoff_writes_well_formed_csv_svg_and_markdown() {
     let out = tempfile::tempdir().unwrap();
     let status = Command::new(env!("CARGO_BIN_EXE_pipeline"))
-        .args(["bench", "tradeoff", "--quick", "--scenes", "demo,glossy", "--out"])
+        .args(["bench", "tradeoff", "--quick", "--scenes", "demo,glossy,checker", "--out"])
         .arg(out.path())
         .status()
         .unwrap();
@@ -54,8 +56,8 @@ fn quick_tradeoff_writes_well_formed_csv_svg_and_markdown() {
     assert_eq!(lines.next().unwrap().split(',').collect::<Vec<_>>(), CSV_COLUMNS);
     let col = |name: &str| CSV_COLUMNS.iter().position(|c| *c == name).unwrap();
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    assert!(rows.len() >= 4, "two quick points per scene, got {} rows", rows.len());
-    for scene in ["demo", "glossy"] {
+    assert!(rows.len() >= 6, "two quick points per scene, got {} rows", rows.len());
+    for scene in ["demo", "glossy", "checker"] {
         let sr: Vec<&Vec<&str>> = rows.iter().filter(|r| r[0] == scene).collect();
         assert!(!sr.is_empty(), "no rows for {scene}");
         assert!(sr.iter().any(|r| r[col("pareto")] == "true"), "{scene}: no point on the Pareto front");
@@ -70,9 +72,30 @@ fn quick_tradeoff_writes_well_formed_csv_svg_and_markdown() {
             "roughness_err",
             "rerender_l1",
             "rerender_l1_truth",
+            "cpu_time_s",
+            "load_avg_1m",
         ] {
             let v: f64 = r[col(name)].parse().unwrap_or_else(|e| panic!("{name} = {}: {e}", r[col(name)]));
             assert!(v.is_finite() && v >= 0.0, "{name} = {v}");
+        }
+        let num = |name: &str| r[col(name)].parse::<f64>().unwrap_or_else(|e| panic!("{name}: {e}"));
+        // A process cannot use more CPU than its cores over the wall time (+ 2 ticks of /proc's 10 ms clock).
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
+        assert!(num("cpu_time_s") <= cores * num("wall_time_s") + 0.02, "{r:?}");
+        let triangle_cols = ["triangle_time_s", "faces", "texture_l1", "texture_psnr_db"];
+        if r[0] == "checker" {
+            // The textured scene ran the per-triangle stage: its time is part of the point's, the mesh only grows
+            // from the scan's 14 triangles, the texture error is an albedo difference in [0, 1].
+            for name in triangle_cols {
+                assert!(num(name).is_finite(), "{name} = {}", r[col(name)]);
+            }
+            assert!(num("triangle_time_s") >= 0.0 && num("triangle_time_s") <= num("wall_time_s"), "{r:?}");
+            assert!(r[col("faces")].parse::<usize>().unwrap() >= 14, "{r:?}");
+            assert!((0.0..=1.0).contains(&num("texture_l1")), "{r:?}");
+        } else {
+            for name in triangle_cols {
+                assert!(r[col(name)].is_empty(), "{name} on an untextured scene: {r:?}");
+            }
         }
         let (paths, rays): (u64, u64) = (r[col("paths")].parse().unwrap(), r[col("rays")].parse().unwrap());
         // Every path casts at least its camera ray.
@@ -84,16 +107,29 @@ fn quick_tradeoff_writes_well_formed_csv_svg_and_markdown() {
     let svg = read(out.path(), "tradeoff.svg");
     assert!(svg.starts_with("<svg"));
     assert_well_formed_xml(&svg);
-    // Three panels per scene, each with one grey marker per sweep point.
-    assert_eq!(svg.matches("fill=\"#999999\" fill-opacity").count(), 3 * rows.len());
+    // Four panels per scene, each with one grey marker per sweep point.
+    assert_eq!(svg.matches("fill=\"#999999\" fill-opacity").count(), 4 * rows.len());
 
     let md = read(out.path(), "tradeoff.md");
     assert!(md.starts_with("# "));
-    for scene in ["demo", "glossy"] {
+    for scene in ["demo", "glossy", "checker"] {
         assert!(md.contains(&format!("## {scene}: Pareto front")), "{md}");
     }
+    assert!(md.contains("load average") && md.contains("CPU time"), "{md}");
+    assert!(md.contains("texture L1"), "{md}");
     let front_rows = rows.iter().filter(|r| r[col("pareto")] == "true").count();
     assert_eq!(md.matches("(front)").count(), front_rows);
+
+    // `--replot` parses the CSV back (every column, the empty per-triangle cells of untextured scenes included)
+    // and rewrites it unchanged, the Pareto flags recomputed from the parsed times and errors.
+    let status = Command::new(env!("CARGO_BIN_EXE_pipeline"))
+        .args(["bench", "tradeoff", "--replot", "--out"])
+        .arg(out.path())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    assert_eq!(read(out.path(), "tradeoff.csv"), csv);
+    assert_eq!(read(out.path(), "tradeoff.md").matches("(front)").count(), front_rows);
 }
 
 #[test]

@@ -26,19 +26,6 @@ fn f32_col(mesh: &ingest::ply::PlyMesh, name: &str) -> Vec<f32> {
     }
 }
 
-/// Barycentric containment in the xy plane (the floor is z = 0), with a tolerance for points on an edge.
-fn contains_xy(p: [Vec3; 3], x: f32, y: f32) -> bool {
-    let [a, b, c] = p;
-    let d = (b.y - c.y) * (a.x - c.x) + (c.x - b.x) * (a.y - c.y);
-    if d == 0.0 {
-        return false;
-    }
-    let l1 = ((b.y - c.y) * (x - c.x) + (c.x - b.x) * (y - c.y)) / d;
-    let l2 = ((c.y - a.y) * (x - c.x) + (a.x - c.x) * (y - c.y)) / d;
-    let eps = 1e-6;
-    l1 >= -eps && l2 >= -eps && 1.0 - l1 - l2 >= -eps
-}
-
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for e in std::fs::read_dir(from).unwrap() {
@@ -81,32 +68,25 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     eprintln!("floor: {floor_before} → {floor_after} triangles; mesh {} → {}", scan_segments.len(), segment.len());
     assert!(floor_after > floor_before);
 
-    // 2000 random floor points → containing exported face → albedo, against the true checker.
-    let checker = floor.checker.unwrap();
-    let pipeline::synth::desc::Shape::Quad { corner, u, v } = floor.shape else { panic!("floor is a quad") };
-    let (corner, u, v) = (Vec3::from(corner), Vec3::from(u), Vec3::from(v));
+    // 2000 random floor points → containing exported face → albedo, against the true checker (the metric of
+    // `pipeline bench tradeoff`, one source of truth).
+    let quad = pipeline::bench::metrics::CheckerQuad::of(floor).expect("the floor is a checker quad");
     let albedo = [f32_col(&exported, "albedo_r"), f32_col(&exported, "albedo_g"), f32_col(&exported, "albedo_b")];
+    let albedo: Vec<Vec3> = (0..segment.len()).map(|f| Vec3::new(albedo[0][f], albedo[1][f], albedo[2][f])).collect();
     let floor_faces: Vec<usize> = (0..segment.len()).filter(|&t| segment[t] == floor.id).collect();
-    let mut sq = 0.0f64;
-    let n = 2000;
-    for i in 0..n {
-        let s = pipeline::fit::pixels::uniform(6, 1, i, 0) as f32;
-        let t = pipeline::fit::pixels::uniform(6, 1, i, 1) as f32;
-        let p = corner + s * u + t * v;
-        let face = floor_faces
-            .iter()
-            .copied()
-            .find(|&f| contains_xy(exported.triangles[f].map(|k| exported.positions[k as usize]), p.x, p.y))
-            .unwrap_or_else(|| panic!("no floor face contains {p}"));
-        let truth = checker.albedo_at(s, t);
-        for c in 0..3 {
-            let e = f64::from(albedo[c][face] - truth[c]);
-            sq += e * e;
-        }
-    }
-    let mse = sq / (3.0 * n as f64);
-    let psnr = 10.0 * (1.0 / mse).log10();
-    eprintln!("floor albedo PSNR {psnr:.2} dB over {n} points");
+    let n = pipeline::bench::metrics::TEXTURE_POINTS;
+    let texture = pipeline::bench::metrics::checker_albedo_error(
+        &quad,
+        &exported.positions,
+        &exported.triangles,
+        &albedo,
+        &floor_faces,
+        n,
+        pipeline::bench::metrics::TEXTURE_POINTS_SEED,
+    )
+    .unwrap();
+    let psnr = texture.psnr_db;
+    eprintln!("floor albedo PSNR {psnr:.2} dB, L1 {:.4} over {n} points", texture.l1);
     assert!(psnr >= 28.0, "PSNR {psnr:.2} dB");
 
     // Nothing changed: every stage skipped.

@@ -16,6 +16,41 @@ pub struct BenchScene {
     pub built: BuiltScene,
     /// One photo per camera of `built`, full resolution, all pixels valid.
     pub photos: Vec<LinearImage>,
+    /// For a scene with textured (checker) objects, whose photos come from a finer mesh than the scan's: the
+    /// scan mesh with one material and emitter slot per object, what the fits see (`None`: `built.scene` is
+    /// already that).
+    pub scan_scene: Option<tracer::Scene>,
+}
+
+impl BenchScene {
+    /// A bench scene from a built description and its photos.
+    pub fn new(name: &str, built: BuiltScene, photos: Vec<LinearImage>) -> Result<Self, BenchError> {
+        let scan_scene = if built.desc.objects.iter().any(|o| o.checker.is_some()) {
+            let m = &built.mesh;
+            Some(tracer::Scene::new(tracer::SceneInput {
+                positions: m.positions.clone(),
+                triangles: m.triangles.clone(),
+                normals: Some(m.normals.clone()),
+                material_of_tri: m.object_of_tri.clone(),
+                emitter_of_tri: m.object_of_tri.clone(),
+            })?)
+        } else {
+            None
+        };
+        Ok(Self { name: name.to_owned(), built, photos, scan_scene })
+    }
+
+    /// The scene the fits run on: the scan mesh, one slot per object.
+    #[must_use]
+    pub fn fit_scene(&self) -> &tracer::Scene {
+        self.scan_scene.as_ref().unwrap_or(&self.built.scene)
+    }
+
+    /// Description indices of the objects with a checker albedo.
+    #[must_use]
+    pub fn textured_objects(&self) -> Vec<usize> {
+        (0..self.built.desc.objects.len()).filter(|&k| self.built.desc.objects[k].checker.is_some()).collect()
+    }
 }
 
 /// Where the scene descriptions and the committed scans live: `<workspace>/data-fixtures`.
@@ -49,7 +84,7 @@ pub fn load(workspace: &Path, name: &str) -> Result<BenchScene, BenchError> {
             });
         }
     }
-    Ok(BenchScene { name: name.to_owned(), built, photos })
+    BenchScene::new(name, built, photos)
 }
 
 /// Reads a linear EXR (the synthetic scans' photos) through ingest's photo reader.
