@@ -46,6 +46,31 @@ pub struct ReportData {
     pub notes: Vec<String>,
     /// The per-triangle stage's summary, when it ran.
     pub triangle: Option<TriangleSection>,
+    /// The object fit's path-sample counts, when its result recorded them.
+    pub samples: Option<SampleCounts>,
+}
+
+/// Path samples a fit traced and, of them, the ones the tracer discarded as non-finite (issue 7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SampleCounts {
+    pub traced_paths: u64,
+    pub discarded: u64,
+}
+
+/// The sentence the report shows for `c`.
+#[must_use]
+pub fn samples_sentence(c: &SampleCounts) -> String {
+    let share = if c.discarded > 0 && c.traced_paths > 0 {
+        format!(" ({:.2e} of them)", c.discarded as f64 / c.traced_paths as f64)
+    } else {
+        String::new()
+    };
+    format!(
+        "Path samples of the object fit: {} traced, {} discarded as non-finite{share}. A discarded sample \
+         contributes nothing and darkens its pixel; the fit accepts at most 1e-4 of its samples discarded, and \
+         an ordinary scene discards none.",
+        c.traced_paths, c.discarded
+    )
 }
 
 /// The "Per-triangle stage" section: triangle counts per object and the exported albedo atlas.
@@ -258,6 +283,11 @@ pub fn html(data: &ReportData) -> String {
         let _ = writeln!(s, "<p>{}</p>", escape(n));
     }
     let _ = writeln!(s, "<h2>Loss</h2>\n{}", svg_chart(&data.loss, 720, 280, "iteration", "loss"));
+    if let Some(c) = &data.samples {
+        // Discarded samples bias their pixels darker: shown in red when there were any.
+        let style = if c.discarded > 0 { " style=\"color:#b00\"" } else { "" };
+        let _ = writeln!(s, "<p class=\"samples\"{style}>{}</p>", escape(&samples_sentence(c)));
+    }
 
     let _ = writeln!(
         s,
@@ -429,6 +459,7 @@ mod tests {
                 counts: vec![(1, "floor & co".into(), 2, 32)],
                 atlas_png: Some(png_srgb(&RgbImage { width: 2, height: 1, rgb: vec![0.5; 6] }, 1.0)),
             }),
+            samples: Some(SampleCounts { traced_paths: 2_000_000, discarded: 3 }),
         };
         let page = html(&data);
         assert!(!page.contains("<script>"));
@@ -442,5 +473,9 @@ mod tests {
         assert!(page.contains("background:#ff0000"));
         assert!(page.contains("<td class=\"l\">because</td>"));
         assert!(!page.contains("src=\"http") && !page.contains("href="));
+        assert!(page.contains("2000000 traced, 3 discarded as non-finite (1.50e-6 of them)."), "samples line");
+        let none = samples_sentence(&SampleCounts { traced_paths: 10, discarded: 0 });
+        assert!(none.contains("10 traced, 0 discarded as non-finite. "), "{none}");
+        assert!(page.contains("<p class=\"samples\" style=\"color:#b00\">"));
     }
 }

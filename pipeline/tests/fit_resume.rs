@@ -64,6 +64,9 @@ fn same_seed_same_result_and_resume_equals_uninterrupted() {
     assert_eq!(resumed.params, a.params, "resumed run differs from the uninterrupted one");
     assert_eq!(resumed.history, a.history);
     assert_eq!(resumed.per_object, a.per_object);
+    // The path-sample counts cover the whole fit, the checkpointed part included.
+    assert!(a.traced_paths > 0);
+    assert_eq!((resumed.traced_paths, resumed.discarded_samples), (a.traced_paths, a.discarded_samples));
 
     let other = ObjectFitSettings { seed: 1, ..settings };
     let c = run(&built, &images, &other, None, None, &mut saved).unwrap();

@@ -376,6 +376,17 @@ fn add_material(out: &mut Vec<GradEntry>, idx: u32, m: &MaterialGradSum) {
     out.push(GradEntry::Material(idx, *m));
 }
 
+/// Adds one path's entries (from [`backward`] into an empty vector) to a pixel's entries, merged like
+/// [`backward`] merges them.
+pub(crate) fn merge(out: &mut Vec<GradEntry>, path: &[GradEntry]) {
+    for e in path {
+        match *e {
+            GradEntry::Material(i, ref m) => add_material(out, i, m),
+            GradEntry::Emission(i, d) => add_emission(out, i, d),
+        }
+    }
+}
+
 /// Adds entries into a dense table, in order.
 pub(crate) fn accumulate(grads: &mut Grads, entries: &[GradEntry]) {
     for e in entries {

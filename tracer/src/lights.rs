@@ -41,7 +41,8 @@ impl LightSampler {
         for e in 0..n as u32 {
             let em = params.emission[e as usize];
             // Negative or NaN emission (possible transiently inside an optimiser step) is not sampled.
-            let w = f64::from(em.element_sum() / 3.0) * scene.emitter_area(e);
+            // Summed in f64: an f32 sum of three channels near f32::MAX would overflow and drop the light.
+            let w = em.as_dvec3().element_sum() / 3.0 * scene.emitter_area(e);
             if w > 0.0 && w.is_finite() {
                 slots.push(e);
                 weights.push(w);

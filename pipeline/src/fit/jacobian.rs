@@ -8,6 +8,7 @@
 //! - Base colour: `gradient_pixels` over one pixel with weight (1, 1, 1) returns that pixel's row
 //!   ∂I_c/∂ρ_{k,c} (base colour acts per channel).
 
+use super::samples::SampleCounter;
 use rayon::prelude::*;
 use tracer::{PixelRef, TracerError};
 
@@ -25,16 +26,7 @@ pub fn emission_columns(
             let mut emission = vec![glam::Vec3::ZERO; k_count];
             emission[k] = glam::Vec3::ONE;
             let params = tracer::Params { materials: materials.to_vec(), emission };
-            let v = tracer::render_pixels(
-                ctx.scene,
-                &params,
-                ctx.cameras,
-                pixels,
-                spp,
-                ctx.settings,
-                ctx.seed,
-                iteration_key,
-            )?;
+            let v = ctx.render(&params, pixels, spp, iteration_key)?;
             Ok(v.iter().map(|c| [f64::from(c.x), f64::from(c.y), f64::from(c.z)]).collect())
         })
         .collect()
@@ -60,17 +52,7 @@ pub fn pixel_rows(
     pixels
         .par_iter()
         .map(|p| {
-            let g = tracer::gradient_pixels(
-                ctx.scene,
-                params,
-                ctx.cameras,
-                std::slice::from_ref(p),
-                &[glam::Vec3::ONE],
-                spp,
-                ctx.settings,
-                ctx.seed,
-                iteration_key,
-            )?;
+            let g = ctx.gradient(params, std::slice::from_ref(p), &[glam::Vec3::ONE], spp, iteration_key)?;
             Ok(PixelRow {
                 base_color: g.materials.iter().map(|m| m.base_color.to_array()).collect(),
                 emission: g.emission.iter().map(|e| e.to_array()).collect(),
@@ -86,6 +68,41 @@ pub struct Ctx<'a> {
     pub cameras: &'a [tracer::Camera],
     pub settings: &'a tracer::TracerSettings,
     pub seed: u64,
+    /// Where every call through [`Ctx::render`] and [`Ctx::gradient`] adds its path counts.
+    pub samples: &'a SampleCounter,
+}
+
+impl Ctx<'_> {
+    /// `tracer::Renderer::render_pixels` with this context's scene, cameras, settings and seed; the work is
+    /// counted in `samples`.
+    pub fn render(
+        &self,
+        params: &tracer::Params,
+        pixels: &[PixelRef],
+        spp: u32,
+        key: u64,
+    ) -> Result<Vec<glam::Vec3>, TracerError> {
+        let r = tracer::Renderer::new(self.scene, params, self.settings)?;
+        let (values, stats) = r.render_pixels(self.cameras, pixels, spp, self.seed, key)?;
+        self.samples.add(&stats);
+        Ok(values)
+    }
+
+    /// `tracer::Renderer::gradient_pixels` with this context's scene, cameras, settings and seed; the work is
+    /// counted in `samples`.
+    pub fn gradient(
+        &self,
+        params: &tracer::Params,
+        pixels: &[PixelRef],
+        weights: &[glam::Vec3],
+        spp: u32,
+        key: u64,
+    ) -> Result<tracer::Grads, TracerError> {
+        let r = tracer::Renderer::new(self.scene, params, self.settings)?;
+        let (grads, stats) = r.gradient_pixels(self.cameras, pixels, weights, spp, self.seed, key)?;
+        self.samples.add(&stats);
+        Ok(grads)
+    }
 }
 
 /// Full Jacobian rows per pixel and channel: `rows[j][c]` holds, for every object k, ∂I_{j,c}/∂θ_k for
@@ -104,17 +121,7 @@ pub fn channel_rows(
             let row = |c: usize| -> Result<Vec<[f64; 4]>, TracerError> {
                 let mut w = glam::Vec3::ZERO;
                 w[c] = 1.0;
-                let g = tracer::gradient_pixels(
-                    ctx.scene,
-                    params,
-                    ctx.cameras,
-                    std::slice::from_ref(p),
-                    &[w],
-                    spp,
-                    ctx.settings,
-                    ctx.seed,
-                    iteration_key,
-                )?;
+                let g = ctx.gradient(params, std::slice::from_ref(p), &[w], spp, iteration_key)?;
                 Ok(g.materials
                     .iter()
                     .zip(&g.emission)

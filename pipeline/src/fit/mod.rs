@@ -82,8 +82,17 @@
 //!   fits as well as at the origin (albedo within 0.004, light 0.6 %); cameras 2 cm off a wall looking
 //!   along it, and 1e-6 m² triangles next to 3.75 m² ones: no non-finite value, the tile reported
 //!   unconstrained; roughness 0.01 recovered as 0.16 (the photos' 2.5° pixels cannot tell lobes below
-//!   r ≈ 0.17 apart), roughness 1 correctly left diffuse. The fit discards no sample: any non-finite
-//!   gradient, loss or parameter aborts it (`FitError::NonFinite`), so a finished fit had none.
+//!   r ≈ 0.17 apart), roughness 1 correctly left diffuse.
+//!
+//! # Non-finite values
+//!
+//! A path sample whose estimate overflows (f32) is discarded by the tracer — it contributes nothing — and
+//! counted; the fit sums the counts of every tracer call ([`samples`]) into
+//! [`FitOutcome::discarded_samples`] of [`FitOutcome::traced_paths`], logs them (a warning when any was
+//! discarded), and fails with [`FitError::TooManyDiscarded`] when more than
+//! [`samples::MAX_DISCARDED_FRACTION`] (1e-4) of the paths were discarded. A gradient or loss can then only
+//! be non-finite through a bug, so a non-finite gradient, loss or parameter still aborts the fit
+//! (`FitError::NonFinite`). Every extreme case of tests/stability_extremes.rs discards no sample.
 
 pub mod adam;
 pub mod emission_solve;
@@ -93,6 +102,7 @@ pub mod linear;
 pub mod object;
 pub mod pixels;
 pub mod roughness;
+pub mod samples;
 pub mod select;
 pub mod settings;
 
@@ -149,6 +159,13 @@ pub struct FitState {
     pub params: Vec<f64>,
     pub adam: adam::AdamState,
     pub history: Vec<IterationRecord>,
+    /// Path samples traced so far ([`FitOutcome::traced_paths`]); 0 in checkpoints written before the count
+    /// existed, whose resumed fits then count only the steps after the resume.
+    #[serde(default)]
+    pub traced_paths: u64,
+    /// Of these, the ones the tracer discarded as non-finite ([`FitOutcome::discarded_samples`]).
+    #[serde(default)]
+    pub discarded_samples: u64,
 }
 
 /// The model chosen for one object and the evidence for it.
@@ -167,6 +184,12 @@ pub struct FitOutcome {
     pub params: tracer::Params,
     pub history: Vec<IterationRecord>,
     pub per_object: Vec<ObjectModel>,
+    /// Path samples traced by the whole fit (every value and gradient path of every tracer call, discarded
+    /// ones included; a resumed fit includes the checkpointed part).
+    pub traced_paths: u64,
+    /// Of `traced_paths`, the samples the tracer discarded because their estimate was not finite; at most
+    /// [`samples::MAX_DISCARDED_FRACTION`] of them, else the fit fails ([`FitError::TooManyDiscarded`]).
+    pub discarded_samples: u64,
 }
 
 /// Why a fit failed.
@@ -190,4 +213,10 @@ pub enum FitError {
     Checkpoint(String),
     #[error("fit: non-finite {what} at step {iteration}")]
     NonFinite { what: &'static str, iteration: u32 },
+    #[error(
+        "fit: the tracer discarded {discarded} of {paths} path samples as non-finite (f32 overflow), more than \
+         the accepted fraction of {bound:e}; check for extreme emission values or degenerate geometry",
+        bound = samples::MAX_DISCARDED_FRACTION
+    )]
+    TooManyDiscarded { discarded: u64, paths: u64 },
 }

@@ -7,6 +7,7 @@ use super::jacobian::Ctx;
 use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
 use super::linear::DataLoss;
 use super::pixels::{self, PixelSets, Sample, stream};
+use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
 use super::{FitError, FitInputs, FitOutcome, FitState, IterationRecord, ObjectFitSettings, select};
 use glam::Vec3;
@@ -132,7 +133,7 @@ pub(crate) fn adam_iteration(
     let batch = pixels::draw(train, s.batch_pixels as usize, ctx.seed, stream::BATCH, key);
     let pix: Vec<PixelRef> = batch.iter().map(|b| b.pixel).collect();
     let params = layout::to_params(x);
-    let values = tracer::render_pixels(ctx.scene, &params, ctx.cameras, &pix, s.n_value, ctx.settings, ctx.seed, key)?;
+    let values = ctx.render(&params, &pix, s.n_value, key)?;
     let b = batch.len().max(1) as f32;
     let mut loss = 0.0;
     let weights: Vec<Vec3> = values
@@ -144,18 +145,10 @@ pub(crate) fn adam_iteration(
             loss_weight(s, d, t.target) / b
         })
         .collect();
-    let g = tracer::gradient_pixels(
-        ctx.scene,
-        &params,
-        ctx.cameras,
-        &pix,
-        &weights,
-        s.n_grad,
-        ctx.settings,
-        ctx.seed,
-        key,
-    )?;
+    let g = ctx.gradient(&params, &pix, &weights, s.n_grad, key)?;
     let grad = layout::flatten_grads(&g, k_count);
+    // The tracer discards non-finite samples (counted in `ctx.samples`), so a non-finite gradient or loss here
+    // is a bug (e.g. a non-finite weight), not an overflowing path: it aborts the fit.
     if !grad.iter().all(|v| v.is_finite()) || !loss.is_finite() {
         return Err(FitError::NonFinite { what: "gradient or loss", iteration: key as u32 });
     }
@@ -181,7 +174,12 @@ pub fn fit_objects(
     validate(inputs)?;
     let s = inputs.settings;
     let k_count = inputs.objects.len();
-    let ctx = Ctx { scene: inputs.scene, cameras: inputs.cameras, settings: inputs.tracer, seed: s.seed };
+    let samples = match &resume {
+        Some(st) => SampleCounter::starting_at(st.traced_paths, st.discarded_samples),
+        None => SampleCounter::default(),
+    };
+    let ctx =
+        Ctx { scene: inputs.scene, cameras: inputs.cameras, settings: inputs.tracer, seed: s.seed, samples: &samples };
     let sets = pixels::collect(inputs.scene, inputs.cameras, inputs.images, k_count, s.holdout_fraction, s.seed);
     if sets.train.is_empty() {
         return Err(FitError::NoPixels);
@@ -207,6 +205,8 @@ pub fn fit_objects(
                 adam: AdamState::new(x.len(), AdamConfig::default()),
                 params: x,
                 history: Vec::new(),
+                traced_paths: 0,
+                discarded_samples: 0,
             }
         }
     };
@@ -250,9 +250,17 @@ pub fn fit_objects(
             return Err(FitError::NonFinite { what: "parameter", iteration: it });
         }
         progress.set_message(format!("loss {:.4}", rec.loss));
-        tracing::debug!(iteration = it, phase = %rec.phase, loss = rec.loss, "fit step");
+        tracing::debug!(
+            iteration = it,
+            phase = %rec.phase,
+            loss = rec.loss,
+            discarded_samples = samples.discarded(),
+            "fit step"
+        );
         state.history.push(rec);
         state.iteration = it;
+        state.traced_paths = samples.paths();
+        state.discarded_samples = samples.discarded();
         progress.set_position(u64::from(it));
         let phase_end = it == s.iterations || it == total;
         if (s.checkpoint_every > 0 && it % s.checkpoint_every == 0) || phase_end {
@@ -262,12 +270,32 @@ pub fn fit_objects(
 
     let x = average_refinement(&state, s);
     let (x, per_object) = select::choose_models(&ctx, s, &sets, &x, &free)?;
-    // Nothing non-finite is ever discarded or clamped away silently: like every step above, the model
-    // selection's result is checked and a non-finite value aborts the fit (tests/stability_extremes.rs).
+    // No non-finite parameter is ever clamped away silently: like every step above, the model selection's
+    // result is checked and a non-finite value aborts the fit (tests/stability_extremes.rs). Non-finite path
+    // samples are the one thing discarded, by the tracer, and they are counted and bounded below.
     if !x.iter().all(|v| v.is_finite()) {
         return Err(FitError::NonFinite { what: "parameter after model selection", iteration: total });
     }
-    Ok(FitOutcome { params: layout::to_params(&x), history: state.history, per_object })
+    let (traced_paths, discarded_samples) = (samples.paths(), samples.discarded());
+    if discarded_samples > 0 {
+        tracing::warn!(
+            discarded_samples,
+            traced_paths,
+            "the tracer discarded {discarded_samples} of {traced_paths} path samples as non-finite (f32 overflow)"
+        );
+    } else {
+        tracing::info!(traced_paths, "fit finished; no path sample was discarded");
+    }
+    if !samples::within_bound(discarded_samples, traced_paths) {
+        return Err(FitError::TooManyDiscarded { discarded: discarded_samples, paths: traced_paths });
+    }
+    Ok(FitOutcome {
+        params: layout::to_params(&x),
+        history: state.history,
+        per_object,
+        traced_paths,
+        discarded_samples,
+    })
 }
 
 /// The parameters after the fit: once the Gauss–Newton steps have converged they scatter around the solution

@@ -60,7 +60,7 @@ pub fn profile(
     xr[idx(k, ROUGHNESS)] = r;
     let params = layout::to_params(&xr);
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
-    let values = tracer::render_pixels(ctx.scene, &params, ctx.cameras, &pixels, spp, ctx.settings, ctx.seed, key)?;
+    let values = ctx.render(&params, &pixels, spp, key)?;
     // Independent random numbers for the Jacobian (the value and its slope must not share noise).
     let rows = jacobian::channel_rows(ctx, &params, &pixels, spp, key ^ (1 << 30))?;
     let m = samples.len();

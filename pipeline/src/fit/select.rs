@@ -136,18 +136,7 @@ pub fn choose_models(
         // Common random numbers for both renders: the paired differences then carry little path noise.
         let key = keys::SELECT + (1 << 20);
         let lobe_pix: Vec<PixelRef> = lobe_test.iter().map(|t| t.pixel).collect();
-        let render = |v: &[f64]| {
-            tracer::render_pixels(
-                ctx.scene,
-                &layout::to_params(v),
-                ctx.cameras,
-                &lobe_pix,
-                s.holdout_spp,
-                ctx.settings,
-                ctx.seed,
-                key,
-            )
-        };
+        let render = |v: &[f64]| ctx.render(&layout::to_params(v), &lobe_pix, s.holdout_spp, key);
         let (i_d, i_t) = (render(&x)?, render(&xt)?);
         for k in (0..k_count).filter(|&k| free[k]) {
             let d: Vec<f64> = lobe_test

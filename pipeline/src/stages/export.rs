@@ -296,6 +296,11 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         objects: materials.objects.clone(),
         why: history.why.clone(),
         triangle: None,
+        // history.json files written before the counts existed hold 0 paths: nothing to show then.
+        samples: (history.traced_paths > 0).then_some(crate::report::SampleCounts {
+            traced_paths: history.traced_paths,
+            discarded: history.discarded_samples,
+        }),
         notes: vec![
             format!("config: {}", plan.config_path.display()),
             format!(

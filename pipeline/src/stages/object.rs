@@ -3,8 +3,9 @@
 //!
 //! Artefacts in `output.path/object/`:
 //! - `materials.json` — the result in the `ipt-materials/1` schema ([`crate::materials`]);
-//! - `history.json` — `{"format": "ipt-object-history/1", "history": [...], "why": [...]}`: the fit's
-//!   per-iteration trajectory and each object's model decision;
+//! - `history.json` — `{"format": "ipt-object-history/1", "history": [...], "why": [...], "traced_paths",
+//!   "discarded_samples"}`: the fit's per-iteration trajectory, each object's model decision, and how many
+//!   path samples the fit traced and how many of them the tracer discarded as non-finite;
 //! - `checkpoint.json` while the stage runs — `{"format": "ipt-object-checkpoint/1", "config_sha256",
 //!   "inputs_sha256", "state"}`, rewritten atomically at every checkpoint the fit hands out and deleted once
 //!   the outputs above are written. A rerun resumes from it only when both hashes match the current run
@@ -99,15 +100,19 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         format: HISTORY_FORMAT.into(),
         history: outcome.history.iter().map(|h| serde_json::to_value(h).unwrap_or(serde_json::Value::Null)).collect(),
         why: outcome.per_object.iter().map(|p| p.why.clone()).collect(),
+        traced_paths: outcome.traced_paths,
+        discarded_samples: outcome.discarded_samples,
     };
     write_json_atomic(&ctx.dir.join(MATERIALS_FILE), &materials)?;
     write_json_atomic(&ctx.dir.join(HISTORY_FILE), &history)?;
     // The result is on disk; the checkpoint has served its purpose.
     checkpoint::remove(&ctx.dir)?;
     eprintln!(
-        "[object] fitted {} objects ({} emission profile)",
+        "[object] fitted {} objects ({} emission profile); {} of {} path samples discarded as non-finite",
         objects.len(),
-        profile_name(plan.tracer.emission_profile)
+        profile_name(plan.tracer.emission_profile),
+        outcome.discarded_samples,
+        outcome.traced_paths
     );
     Ok(vec![PathBuf::from("object").join(MATERIALS_FILE), PathBuf::from("object").join(HISTORY_FILE)])
 }

@@ -17,7 +17,8 @@ pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/1";
 /// Format tag of `history.json`.
 pub const HISTORY_FORMAT: &str = "ipt-object-history/1";
 
-/// `history.json`: the fit's trajectory (entries as the fit records them) and per-object model decisions.
+/// `history.json`: the fit's trajectory (entries as the fit records them), per-object model decisions and the
+/// fit's path-sample counts (issue 7; `materials.json` is a fixed schema, so the per-stage numbers live here).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HistoryFile {
@@ -25,6 +26,12 @@ pub struct HistoryFile {
     pub history: Vec<serde_json::Value>,
     /// Per object (materials.json order): why the fit chose its model.
     pub why: Vec<String>,
+    /// Path samples the fit traced (`FitOutcome::traced_paths`); 0 in files written before the count existed.
+    #[serde(default)]
+    pub traced_paths: u64,
+    /// Of these, the samples the tracer discarded as non-finite (`FitOutcome::discarded_samples`).
+    #[serde(default)]
+    pub discarded_samples: u64,
 }
 
 /// Reads `run_dir/object/materials.json`.

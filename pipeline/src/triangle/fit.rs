@@ -40,6 +40,11 @@ pub struct Fitted {
     pub residual: Vec<Vec3>,
     /// Per triangle: its parameters were fitted (its object does not emit).
     pub free: Vec<bool>,
+    /// Path samples the round traced (value and gradient paths, discarded ones included).
+    pub traced_paths: u64,
+    /// Of these, the samples the tracer discarded as non-finite (at most
+    /// [`crate::fit::samples::MAX_DISCARDED_FRACTION`] of them, else the round fails).
+    pub discarded_samples: u64,
 }
 
 /// Pairs of triangles of one object that share an edge (edges identified by vertex position, as in
@@ -251,18 +256,17 @@ pub fn fit_round(
     let pix: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
     let mut loss = Vec::new();
     let mut residual = vec![Vec3::ZERO; samples.len()];
+    let mut work = tracer::TraceStats::default();
     for step in 0..cfg.fit_steps.max(1) {
         let params = state.params();
-        let values = tracer::render_pixels(
-            scene,
-            &params,
+        let (values, stats) = tracer::Renderer::new(scene, &params, inputs.tracer)?.render_pixels(
             inputs.cameras,
             &pix,
             cfg.spp,
-            inputs.tracer,
             cfg.seed,
             render_key(round, step),
         )?;
+        work.add(&stats);
         let mut t_sum = vec![DVec3::ZERO; n];
         let mut r_sum = vec![DVec3::ZERO; n];
         let mut d_sq = vec![DVec3::ZERO; n];
@@ -318,15 +322,28 @@ pub fn fit_round(
         }
     }
     if cfg.adam_iterations > 0 {
-        adam(inputs, scene, samples, state, &free, &nbrs, round)?;
+        adam(inputs, scene, samples, state, &free, &nbrs, round, &mut work)?;
     }
-    Ok(Fitted { loss, residual, free })
+    // The object fit's bound and reasons (`crate::fit::samples`), per round.
+    if work.discarded > 0 {
+        tracing::warn!(round, discarded = work.discarded, paths = work.paths, "non-finite path samples discarded");
+    }
+    if !crate::fit::samples::within_bound(work.discarded, work.paths) {
+        return Err(TriangleError::Input(format!(
+            "round {round}: the tracer discarded {} of {} path samples as non-finite (f32 overflow), more than \
+             the accepted fraction of {:e}",
+            work.discarded,
+            work.paths,
+            crate::fit::samples::MAX_DISCARDED_FRACTION
+        )));
+    }
+    Ok(Fitted { loss, residual, free, traced_paths: work.paths, discarded_samples: work.discarded })
 }
 
 /// Adam on the per-triangle base colours (and roughness/metallic of specular objects): batches of
 /// `object.batch_pixels` pixels drawn uniformly, `object.n_value` value and `object.n_grad` gradient paths,
 /// the object stage's loss weight, plus the smoothness term `λ/N Σ_(t,u) |ρ_t − ρ_u|²` (N = fitted pixels,
-/// the scale at which λ counts pixels of evidence), clamped to [0, 1].
+/// the scale at which λ counts pixels of evidence), clamped to [0, 1]. The tracer's work is added to `work`.
 fn adam(
     inputs: &RoundInputs<'_>,
     scene: &tracer::Scene,
@@ -335,6 +352,7 @@ fn adam(
     free: &[bool],
     nbrs: &[Vec<u32>],
     round: u32,
+    work: &mut tracer::TraceStats,
 ) -> Result<(), TriangleError> {
     let cfg = inputs.config;
     let s = inputs.object;
@@ -370,24 +388,16 @@ fn adam(
             .collect();
         let pix: Vec<PixelRef> = batch.iter().map(|p| p.pixel).collect();
         let params = state.params();
-        let values =
-            tracer::render_pixels(scene, &params, inputs.cameras, &pix, s.n_value, inputs.tracer, cfg.seed, key)?;
+        let renderer = tracer::Renderer::new(scene, &params, inputs.tracer)?;
+        let (values, stats) = renderer.render_pixels(inputs.cameras, &pix, s.n_value, cfg.seed, key)?;
+        work.add(&stats);
         let weights: Vec<Vec3> = values
             .iter()
             .zip(&batch)
             .map(|(v, p)| crate::fit::object::loss_weight(s, *v - p.target, p.target) / b as f32)
             .collect();
-        let g = tracer::gradient_pixels(
-            scene,
-            &params,
-            inputs.cameras,
-            &pix,
-            &weights,
-            s.n_grad,
-            inputs.tracer,
-            cfg.seed,
-            key,
-        )?;
+        let (g, stats) = renderer.gradient_pixels(inputs.cameras, &pix, &weights, s.n_grad, cfg.seed, key)?;
+        work.add(&stats);
         let mut grad = vec![0.0; 5 * n];
         for t in 0..n {
             let m = &g.materials[t];
@@ -404,6 +414,7 @@ fn adam(
                 }
             }
         }
+        // The tracer discards non-finite samples, so this is a bug check (e.g. a non-finite weight).
         if !grad.iter().all(|v| v.is_finite()) {
             return Err(TriangleError::Input(format!("non-finite gradient in round {round}, Adam iteration {it}")));
         }
