@@ -214,39 +214,6 @@ pub fn corners(base: &FitSetup) -> Vec<SweepPoint> {
     ]
 }
 
-/// Whether the full sweep runs `label` on scene `name`: the default scene `demo` gets every point, the
-/// glossy fixture [`SECONDARY_SCENE_POINTS`], the textured fixture [`TEXTURED_SCENE_POINTS`].
-#[must_use]
-pub fn scene_runs_point(name: &str, label: &str) -> bool {
-    match name {
-        "demo" => true,
-        "checker" => TEXTURED_SCENE_POINTS.contains(&label),
-        _ => SECONDARY_SCENE_POINTS.contains(&label),
-    }
-}
-
-/// The points run on the textured fixture `checker` (each also runs the per-triangle stage).
-pub const TEXTURED_SCENE_POINTS: [&str; 7] = [
-    "corner:tiny",
-    "corner:fast",
-    "corner:fast-depth8",
-    "corner:fast-full-res",
-    "corner:mid",
-    "downscale=2",
-    "default",
-];
-
-/// The points run on every other scene but the default scene `demo` (which gets the whole sweep).
-pub const SECONDARY_SCENE_POINTS: [&str; 7] = [
-    "corner:tiny",
-    "corner:fast",
-    "corner:fast-full-res",
-    "corner:mid",
-    "downscale=2",
-    "try_specular=false",
-    "default",
-];
-
 /// The base setup of a scene: default fit settings, the scene's own max depth, full resolution.
 #[must_use]
 pub fn base_setup(scene: &BenchScene) -> FitSetup {
@@ -319,9 +286,6 @@ pub fn run(opts: &TradeoffOptions) -> Result<Vec<Row>, BenchError> {
         let first = rows.len();
         for point in sweep_points(&base, opts.quick) {
             if !opts.only.is_empty() && !opts.only.contains(&point.label) {
-                continue;
-            }
-            if !opts.quick && opts.only.is_empty() && !scene_runs_point(&scene.name, &point.label) {
                 continue;
             }
             if !scenes::divisible(&scene, point.setup.downscale) {
@@ -650,20 +614,11 @@ fn summary(rows: &[Row], opts: &TradeoffOptions) -> String {
              its time is part of the point's wall time and also listed alone; `texture L1`/`PSNR` compare the \
              final per-triangle albedo with the true checker at {} seeded random points of the textured object; \
              their Pareto front is on the texture L1, and `albedo L1` covers the untextured objects only. The \
-             re-render uses the per-triangle result.{}\n",
+             re-render uses the per-triangle result.\n",
             t.rounds,
             t.spp,
             t.fit_steps,
             metrics::TEXTURE_POINTS,
-            if opts.quick || !opts.only.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    " The full sweep runs only {} points on `checker` (each with the per-triangle stage): {}.",
-                    TEXTURED_SCENE_POINTS.len(),
-                    TEXTURED_SCENE_POINTS.map(|l| format!("`{l}`")).join(", ")
-                )
-            }
         );
     }
     for scene in scene_names(rows) {
