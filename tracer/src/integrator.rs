@@ -18,7 +18,7 @@
 //! (including surfaces that emit nothing now: that is how a hidden light is found) and
 //! β_k ⊙ f_nee,k·g_k·∂Le/∂e at every NEE connection.
 
-use crate::bsdf::{BsdfSample, Material, MaterialGrad};
+use crate::bsdf::{BsdfSample, Material, MaterialAt, MaterialGrad};
 use crate::lights::LightSampler;
 use crate::numerics::{Frame, offset_ray_origin, power_heuristic};
 use crate::params::{Grads, MaterialGradSum, Params, TracerSettings};
@@ -118,20 +118,32 @@ pub(crate) fn trace(
     }
 }
 
-/// A next-event connection whose shadow ray has not been traced yet, with its contribution if unoccluded.
+/// A next-event connection whose shadow ray has not been traced yet. Its BSDF terms are evaluated only once the
+/// light is known to be visible: in gradient mode that skips the derivative evaluation for every occluded
+/// connection (value mode evaluates f before tracing, to skip the shadow ray where f = 0).
 #[derive(Debug, Clone, Copy)]
 struct PendingShadow {
     from: Vec3,
     /// Unnormalised: `to − from`, traced for t in [0, 1 − SHADOW_EPSILON].
     dir: Vec3,
-    nee: NeeRecord,
+    /// Direction to the light in the shading frame.
+    wi_l: Vec3,
+    /// Solid-angle pdf of sampling the light point.
+    pdf_l: f32,
+    /// Le at the light point towards the vertex (no MIS weight), its ∂Le/∂e and emitter slot.
+    le: Vec3,
+    le_factor: f32,
+    emitter: u32,
+    /// Value mode: (f, BSDF pdf) already evaluated.
+    eval: Option<(Vec3, f32)>,
 }
 
-/// Traces a pending shadow ray of vertex `v` (throughput `beta`); when it is unoccluded, adds the
-/// connection's contribution to `l` and records it in `v`.
+/// Traces a pending shadow ray of vertex `v` (throughput `beta`, BSDF `bsdf`); when it is unoccluded,
+/// evaluates the connection (with ∂f in gradient mode), adds its contribution to `l` and records it in `v`.
 #[inline]
-fn finish_shadow(
+fn finish_shadow<const GRAD: bool>(
     scene: &Scene,
+    bsdf: &MaterialAt<'_>,
     shadow: Option<PendingShadow>,
     beta: Vec3,
     l: &mut Vec3,
@@ -140,10 +152,17 @@ fn finish_shadow(
 ) {
     let Some(s) = shadow else { return };
     rays[1] += 1;
-    if !scene.occluded(s.from, s.dir, 1.0 - SHADOW_EPSILON) {
-        *l += beta * s.nee.f * s.nee.le * s.nee.g;
-        v.nee = Some(s.nee);
+    if scene.occluded(s.from, s.dir, 1.0 - SHADOW_EPSILON) {
+        return;
     }
+    let (f, d_f, pdf_b) = match s.eval {
+        Some((f, pdf_b)) if !GRAD => (f, MaterialGrad::default(), pdf_b),
+        _ => bsdf.eval_grad_pdf(s.wi_l),
+    };
+    let mis = power_heuristic(s.pdf_l, pdf_b);
+    let g = s.wi_l.z.abs() / s.pdf_l * mis;
+    *l += beta * f * s.le * g;
+    v.nee = Some(NeeRecord { d_f, f, le: s.le, g, emitter: s.emitter, le_factor: s.le_factor });
 }
 
 /// The path loop of [`trace`]; `GRAD` = gradient mode.
@@ -230,23 +249,25 @@ fn trace_mode<const GRAD: bool>(
             let le_factor = profile.factor(cos_l);
             if le_factor > 0.0 && wi.dot(ng) > 0.0 && dist2 > 0.0 {
                 let wi_l = frame.to_local(wi);
-                let (f, d_f, pdf_b) = if GRAD {
-                    bsdf.eval_grad_pdf(wi_l)
-                } else {
-                    let (f, pdf_b) = bsdf.eval_pdf(wi_l);
-                    (f, MaterialGrad::default(), pdf_b)
-                };
-                // In value mode a zero BSDF value contributes nothing; gradient mode still needs ∂f.
-                if GRAD || f != Vec3::ZERO {
+                // Value mode: a zero BSDF value contributes nothing, so its shadow ray is not traced. Gradient
+                // mode still needs ∂f, evaluated after the shadow ray (finish_shadow).
+                let eval = (!GRAD).then(|| bsdf.eval_pdf(wi_l));
+                if eval.is_none_or(|(f, _)| f != Vec3::ZERO) {
                     let from = offset_ray_origin(sp.p, ng, wi);
                     let to = offset_ray_origin(ls.p, ng_l, -wi);
                     let pdf_l = ls.pdf_area * dist2 / cos_l;
-                    let mis = power_heuristic(pdf_l, pdf_b);
-                    let g = wi_l.z.abs() / pdf_l * mis;
                     let light_emitter = scene.emitter_of(ls.tri);
                     let le = params.emission[light_emitter as usize] * le_factor;
-                    let nee = NeeRecord { d_f, f, le, g, emitter: light_emitter, le_factor };
-                    shadow = Some(PendingShadow { from, dir: to - from, nee });
+                    shadow = Some(PendingShadow {
+                        from,
+                        dir: to - from,
+                        wi_l,
+                        pdf_l,
+                        le,
+                        le_factor,
+                        emitter: light_emitter,
+                        eval,
+                    });
                 }
             }
         }
@@ -260,13 +281,13 @@ fn trace_mode<const GRAD: bool>(
             bsdf.sample(u_dir, u_lobe).map(|s| (s, MaterialGrad::default()))
         };
         let Some((BsdfSample { wi: wi_l, f, pdf }, d_f)) = sampled else {
-            finish_shadow(scene, shadow, beta, &mut l, &mut v, rays);
+            finish_shadow::<GRAD>(scene, &bsdf, shadow, beta, &mut l, &mut v, rays);
             record_if::<GRAD>(record, v);
             break;
         };
         let wi = frame.to_world(wi_l);
         if pdf.is_nan() || pdf <= 0.0 || wi.dot(ng) <= 0.0 {
-            finish_shadow(scene, shadow, beta, &mut l, &mut v, rays);
+            finish_shadow::<GRAD>(scene, &bsdf, shadow, beta, &mut l, &mut v, rays);
             record_if::<GRAD>(record, v);
             break;
         }
@@ -276,7 +297,7 @@ fn trace_mode<const GRAD: bool>(
             let floor = if GRAD { RR_MIN_SURVIVAL_GRADIENT } else { 0.0 };
             let q = beta_next.max_element().clamp(floor, RR_MAX_SURVIVAL);
             if rng.get(dim + 7) >= q {
-                finish_shadow(scene, shadow, beta, &mut l, &mut v, rays);
+                finish_shadow::<GRAD>(scene, &bsdf, shadow, beta, &mut l, &mut v, rays);
                 record_if::<GRAD>(record, v);
                 break;
             }
@@ -288,7 +309,7 @@ fn trace_mode<const GRAD: bool>(
         if let Some(h) = &next_hit {
             scene.prefetch_triangle(h.prim_id);
         }
-        finish_shadow(scene, shadow, beta, &mut l, &mut v, rays);
+        finish_shadow::<GRAD>(scene, &bsdf, shadow, beta, &mut l, &mut v, rays);
         v.scatter = Some(ScatterRecord { d_f, f, weight });
         record_if::<GRAD>(record, v);
         beta *= f * weight;
