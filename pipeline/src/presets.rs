@@ -56,8 +56,7 @@ impl Quality {
     pub fn values(self) -> &'static [(&'static str, PresetValue)] {
         use PresetValue::{Bool, Int};
         match self {
-            // Sweep point `corner:fast-depth8`: demo 1.7 s, albedo L1 0.0095, light within 0.9 %; glossy 0.6 s,
-            // albedo L1 0.033 (no lobe tried).
+            // Sweep point `corner:fast-depth8` (its measured time and accuracy: configs/README.md, presets).
             Quality::Preview => &[
                 ("object.iterations", Int(25)),
                 ("object.n_value", Int(32)),
@@ -69,8 +68,7 @@ impl Quality {
                 ("tracer.max_depth", Int(8)),
                 ("images.downscale", Int(2)),
             ],
-            // Sweep point `corner:mid`: demo 40 s, albedo L1 0.0021, light within 0.6 %; glossy 14 s, albedo L1
-            // 0.0072, roughness within 0.007 — on the front of both scenes.
+            // Sweep point `corner:mid` (measured: configs/README.md, presets).
             Quality::Balanced => &[
                 ("object.iterations", Int(50)),
                 ("object.n_value", Int(128)),
@@ -82,8 +80,7 @@ impl Quality {
                 ("tracer.max_depth", Int(8)),
                 ("images.downscale", Int(1)),
             ],
-            // Sweep point `default` (the fit's defaults, written out): glossy 23 s, albedo L1 0.0065, light within
-            // 3 %, roughness within 0.002 (the most accurate point there); demo 47 s, albedo L1 0.0035.
+            // Sweep point `default`: the fit's defaults, written out (measured: configs/README.md, presets).
             Quality::Final => &[
                 ("object.iterations", Int(100)),
                 ("object.n_value", Int(128)),
