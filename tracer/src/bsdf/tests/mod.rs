@@ -41,80 +41,10 @@ pub(super) fn material(base: f32, roughness: f32, metallic: f32, specular: f32) 
     Material { base_color: Vec3::splat(base), roughness, metallic, specular }
 }
 
-/// ln Γ(x) for x > 0 (Lanczos, g = 7, n = 9; relative error < 1e-13).
-fn ln_gamma(x: f64) -> f64 {
-    const C: [f64; 9] = [
-        0.999_999_999_999_809_9,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_1,
-        -176.615_029_162_140_6,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_572e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
-    if x < 0.5 {
-        return (std::f64::consts::PI / (std::f64::consts::PI * x).sin()).ln() - ln_gamma(1.0 - x);
-    }
-    let x = x - 1.0;
-    let mut a = C[0];
-    let t = x + 7.5;
-    for (i, c) in C.iter().enumerate().skip(1) {
-        a += c / (x + i as f64);
-    }
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
-}
-
-/// Regularised upper incomplete gamma Q(s, x) (Numerical Recipes §6.2: series below s + 1, Lentz continued
-/// fraction above; both iterate to 1e-15 relative).
-fn gamma_q(s: f64, x: f64) -> f64 {
-    if x <= 0.0 {
-        return 1.0;
-    }
-    let ln_pre = -x + s * x.ln() - ln_gamma(s);
-    if x < s + 1.0 {
-        let (mut sum, mut term, mut ap) = (1.0 / s, 1.0 / s, s);
-        for _ in 0..10_000 {
-            ap += 1.0;
-            term *= x / ap;
-            sum += term;
-            if term.abs() < sum.abs() * 1e-15 {
-                break;
-            }
-        }
-        1.0 - sum * ln_pre.exp()
-    } else {
-        let tiny = 1e-300;
-        let mut b = x + 1.0 - s;
-        let mut c = 1.0 / tiny;
-        let mut d = 1.0 / b;
-        let mut h = d;
-        for i in 1..10_000 {
-            let an = -(i as f64) * (i as f64 - s);
-            b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let del = d * c;
-            h *= del;
-            if (del - 1.0).abs() < 1e-15 {
-                break;
-            }
-        }
-        ln_pre.exp() * h
-    }
-}
-
-/// P(χ²_dof ≥ stat).
+/// P(χ²_dof ≥ stat) (statrs).
 pub(super) fn chi2_p_value(stat: f64, dof: usize) -> f64 {
-    gamma_q(0.5 * dof as f64, 0.5 * stat)
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    ChiSquared::new(dof as f64).expect("dof ≥ 1").sf(stat)
 }
 
 #[test]
