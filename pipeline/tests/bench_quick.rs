@@ -82,7 +82,7 @@ fn quick_tradeoff_writes_well_formed_csv_svg_and_markdown() {
         // A process cannot use more CPU than its cores over the wall time (+ 2 ticks of /proc's 10 ms clock).
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
         assert!(num("cpu_time_s") <= cores * num("wall_time_s") + 0.02, "{r:?}");
-        let triangle_cols = ["triangle_time_s", "faces", "texture_l1", "texture_psnr_db"];
+        let triangle_cols = ["triangle_time_s", "faces", "texture_l1", "texture_psnr_db", "triangle_emission_rel_err"];
         if r[0] == "checker" {
             // The textured scene ran the per-triangle stage: its time is part of the point's, the mesh only grows
             // from the scan's 14 triangles, the texture error is an albedo difference in [0, 1].

@@ -96,6 +96,9 @@ pub struct TriangleColumns {
     pub texture_l1: f64,
     /// PSNR of the same (peak 1).
     pub texture_psnr_db: f64,
+    /// Largest relative error of a true emitter's emission after the stage (the stage may re-solve the
+    /// light; `Accuracy::emission_rel_err` is the per-object stage's).
+    pub emission_rel_err: f64,
 }
 
 /// The error a scene's Pareto front is drawn on: the texture L1 on scenes whose rows ran the per-triangle
@@ -106,7 +109,7 @@ pub fn pareto_error(r: &Row) -> f64 {
 }
 
 /// The CSV columns, in order.
-pub const CSV_COLUMNS: [&str; 30] = [
+pub const CSV_COLUMNS: [&str; 31] = [
     "scene",
     "group",
     "label",
@@ -135,6 +138,7 @@ pub const CSV_COLUMNS: [&str; 30] = [
     "faces",
     "texture_l1",
     "texture_psnr_db",
+    "triangle_emission_rel_err",
     "pareto",
     "models",
 ];
@@ -302,11 +306,17 @@ pub fn run(opts: &TradeoffOptions) -> Result<Vec<Row>, BenchError> {
                     })?;
                     let mesh = t.state.scene()?;
                     let rerender = rerender_l1(&scene, &mesh, &held, &t.state.params(), holdout_spp)?;
+                    // The stage's light judged like the object stage's (same truth, same metric).
+                    let light = tracer::Params {
+                        materials: run.fit.outcome.params.materials.clone(),
+                        emission: t.state.emission.clone(),
+                    };
                     let cols = TriangleColumns {
                         seconds: t.seconds,
                         faces: t.state.triangles.len(),
                         texture_l1: texture.l1,
                         texture_psnr_db: texture.psnr_db,
+                        emission_rel_err: metrics::accuracy(&scene.built, &light).emission_rel_err,
                     };
                     (rerender, Some(cols))
                 }
@@ -324,8 +334,8 @@ pub fn run(opts: &TradeoffOptions) -> Result<Vec<Row>, BenchError> {
                 rerender,
                 floor,
                 triangle.map_or(String::new(), |t| format!(
-                    "  triangle {:.2} s, {} faces, texture L1 {:.4}, PSNR {:.2} dB",
-                    t.seconds, t.faces, t.texture_l1, t.texture_psnr_db
+                    "  triangle {:.2} s, {} faces, texture L1 {:.4}, PSNR {:.2} dB, emission {:.4}",
+                    t.seconds, t.faces, t.texture_l1, t.texture_psnr_db, t.emission_rel_err
                 ))
             );
             let models = run.fit.outcome.per_object.iter().map(|m| m.model.as_str()).collect::<Vec<_>>().join(";");
@@ -410,6 +420,7 @@ pub fn replot(opts: &TradeoffOptions) -> Result<Vec<Row>, BenchError> {
                 faces: int("faces")? as usize,
                 texture_l1: num("texture_l1")?,
                 texture_psnr_db: num("texture_psnr_db")?,
+                emission_rel_err: num("triangle_emission_rel_err")?,
             })
         };
         rows.push(Row {
@@ -471,8 +482,13 @@ fn csv(rows: &[Row], models: &[String]) -> String {
         let o = &r.point.setup.object;
         let a = &r.accuracy;
         let tri = r.triangle.map_or_else(
-            || ",,,".to_owned(),
-            |t| format!("{:.3},{},{:.6},{:.3}", t.seconds, t.faces, t.texture_l1, t.texture_psnr_db),
+            || ",,,,".to_owned(),
+            |t| {
+                format!(
+                    "{:.3},{},{:.6},{:.3},{:.6}",
+                    t.seconds, t.faces, t.texture_l1, t.texture_psnr_db, t.emission_rel_err
+                )
+            },
         );
         let _ = writeln!(
             s,
@@ -630,8 +646,12 @@ fn summary(rows: &[Row], opts: &TradeoffOptions) -> String {
             s,
             "| point | wall [s] | CPU [s] | load 1 min | rays | albedo L1 | emission rel. err | roughness err | \
              re-render L1 |{}\n|---|---|---|---|---|---|---|---|---|{}",
-            if textured { " triangle stage [s] | faces | texture L1 | PSNR [dB] |" } else { "" },
-            if textured { "---|---|---|---|" } else { "" }
+            if textured {
+                " triangle stage [s] | faces | texture L1 | PSNR [dB] | emission rel. err after it |"
+            } else {
+                ""
+            },
+            if textured { "---|---|---|---|---|" } else { "" }
         );
         let mut front: Vec<&&Row> = sr.iter().filter(|r| r.pareto).collect();
         front.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
@@ -664,8 +684,8 @@ fn summary(rows: &[Row], opts: &TradeoffOptions) -> String {
                 d.rerender_l1,
                 d.rerender_l1_truth,
                 d.triangle.map_or(String::new(), |t| format!(
-                    ", per-triangle stage {:.2} s, {} faces, texture L1 {:.4} ({:.2} dB)",
-                    t.seconds, t.faces, t.texture_l1, t.texture_psnr_db
+                    ", per-triangle stage {:.2} s, {} faces, texture L1 {:.4} ({:.2} dB), emission error after it {:.4}",
+                    t.seconds, t.faces, t.texture_l1, t.texture_psnr_db, t.emission_rel_err
                 ))
             );
         }
@@ -673,8 +693,12 @@ fn summary(rows: &[Row], opts: &TradeoffOptions) -> String {
             s,
             "\nEvery point:\n\n| point | wall [s] | CPU [s] | load 1 min | albedo L1 | emission rel. err | re-render L1 |{}\n\
              |---|---|---|---|---|---|---|{}",
-            if textured { " triangle stage [s] | faces | texture L1 | PSNR [dB] |" } else { "" },
-            if textured { "---|---|---|---|" } else { "" }
+            if textured {
+                " triangle stage [s] | faces | texture L1 | PSNR [dB] | emission rel. err after it |"
+            } else {
+                ""
+            },
+            if textured { "---|---|---|---|---|" } else { "" }
         );
         for r in &sr {
             let _ = writeln!(
@@ -699,7 +723,10 @@ fn summary(rows: &[Row], opts: &TradeoffOptions) -> String {
 /// The per-triangle cells of a markdown row (empty for rows without the stage).
 fn triangle_cells(r: &Row) -> String {
     r.triangle.map_or(String::new(), |t| {
-        format!(" {:.2} | {} | {:.4} | {:.2} |", t.seconds, t.faces, t.texture_l1, t.texture_psnr_db)
+        format!(
+            " {:.2} | {} | {:.4} | {:.2} | {:.4} |",
+            t.seconds, t.faces, t.texture_l1, t.texture_psnr_db, t.emission_rel_err
+        )
     })
 }
 
