@@ -1,9 +1,10 @@
 //! Issue 6 acceptance: the checker scene (data-fixtures/scenes/checker.toml: a 4 × 4 checkerboard floor that the
 //! scan mesh models as 2 triangles, untextured walls) through `pipeline run` (ingest → preprocess → object →
 //! triangle → export). After the per-triangle stage the floor's exported albedo, sampled at 2000 random floor
-//! points through `export/mesh.ply` (point → containing face → albedo), has PSNR ≥ 28 dB against the true
-//! checker, and the walls were not subdivided. Also: a rerun resumes nothing and skips every stage, and
-//! `pipeline export RUN_DIR` rewrites the same mesh.ply.
+//! points through `export/mesh.ply` (point → containing face → albedo), has PSNR ≥ 40 dB against the true
+//! checker (issue 7; 28 dB in issue 6), the walls were not subdivided, and the light of the per-triangle result
+//! is within 3 % of the truth. Also: a rerun resumes nothing and skips every stage, and `pipeline export
+//! RUN_DIR` rewrites the same mesh.ply.
 //!
 //! The run directory's `export/`, `triangle/result.json` and `ingest/scene.json` are copied to
 //! `target/triangle_checker/` for tests/validation/test_triangle_export.py.
@@ -87,7 +88,29 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     .unwrap();
     let psnr = texture.psnr_db;
     eprintln!("floor albedo PSNR {psnr:.2} dB, L1 {:.4} over {n} points", texture.l1);
-    assert!(psnr >= 28.0, "PSNR {psnr:.2} dB");
+    // Measured 41.4 dB here (light 2.2 % high); 43.5 dB in `pipeline bench tradeoff --scenes checker --only
+    // default` (33.4 dB before the final round re-solved the light). The bound is the issue's acceptance level;
+    // the light's scatter (±2 %) moves the PSNR by a few dB.
+    assert!(psnr >= 40.0, "PSNR {psnr:.2} dB");
+
+    // The light of the per-triangle result (re-solved with the per-triangle materials, module docs of
+    // pipeline::triangle): within 3 % per channel of the truth, where the per-object stage's light, fitted with
+    // one colour for the whole checker floor, is 6.5 % off at the bench's default point (here: 2.6 %, 19.83,
+    // 17.53, 14.84; the light-change gate finds that significant, p = 9.4e-6). Measured: 20.45, 18.32, 15.08,
+    // max 2.2 %. No other
+    // object emits (the object stage's model decision is kept).
+    let state = pipeline::stages::triangle::read_result(&out).unwrap().expect("triangle/result.json");
+    for (o, id) in ids.iter().enumerate() {
+        let truth = desc.objects.iter().find(|d| i64::from(d.id) == *id).unwrap();
+        let (got, want) = (state.emission[o], Vec3::from_array(truth.emission));
+        if want.max_element() > 0.0 {
+            let rel = ((got - want) / want).abs().max_element();
+            eprintln!("light {}: {got} (truth {want}), max relative error {rel:.4}", truth.label);
+            assert!(rel < 0.03, "light {}: {got} vs {want}", truth.label);
+        } else {
+            assert_eq!(got, Vec3::ZERO, "{} emits {got}", truth.label);
+        }
+    }
 
     // Nothing changed: every stage skipped.
     let (code, err) = pipeline(&["run", cfg]);

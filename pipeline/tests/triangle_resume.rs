@@ -1,6 +1,9 @@
 //! The per-triangle rounds resume exactly: stopping after a round's checkpoint and continuing from the
-//! checkpointed state ends with the same mesh and parameters as an uninterrupted run (all random numbers are
-//! keyed by seed, round and step). In-memory checker scene with 128-path photos.
+//! checkpointed state ends with the same mesh and parameters — per-triangle materials and the per-object
+//! emission that the final round re-solves — as an uninterrupted run (all random numbers are keyed by seed,
+//! round, pass and step), also when the checkpoint went through its JSON form. In-memory checker scene with
+//! 128-path photos, started from the true per-object values but a light 8 % low (as the object stage leaves it
+//! at `iterations = 0`), so that the final round's light-change test finds the light wrong and re-solves it.
 
 use std::path::Path;
 
@@ -15,7 +18,12 @@ fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends()
     let built = pipeline::synth::build(desc, &path).unwrap();
     let images = pipeline::synth::photos(&built).unwrap();
     let k = built.desc.objects.len();
-    let start = pipeline::synth::true_triangle_start(&built).unwrap();
+    let mut start = pipeline::synth::true_triangle_start(&built).unwrap();
+    // 8 %: ~10 standard errors of the light-change test's averaged steps (scatter ±1.5 % per step), so the
+    // re-solve (the part of the stage whose resumption this checks last) runs.
+    for e in &mut start.emission {
+        *e *= 0.92;
+    }
     let config = TriangleConfig { rounds: 2, fit_steps: 2, spp: 8, ..TriangleConfig::default() };
     let object = pipeline::fit::ObjectFitSettings::default();
     let specular = vec![false; k];
@@ -33,14 +41,26 @@ fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends()
         checkpoints.push(s.clone());
         Ok(())
     };
+    let start_emission = start.emission.clone();
     let full = run_rounds(&inputs, start, &mut keep, &bar).unwrap();
     assert!(!checkpoints.is_empty(), "no round ended with a split: {:?}", full.log);
     assert!(full.triangles.len() > built.mesh.triangles.len());
-    let resumed_from = checkpoints[0].clone();
+    // The checkpoint as the stage writes and reads it (serde_json), so the resumed state is bit-identical.
+    let json = serde_json::to_string(&checkpoints[0]).unwrap();
+    let resumed_from: TriangleState = serde_json::from_str(&json).unwrap();
+    assert_eq!(resumed_from, checkpoints[0]);
     let resumed = run_rounds(&inputs, resumed_from, &mut |_| Ok(()), &bar).unwrap();
     assert_eq!(resumed.positions, full.positions);
     assert_eq!(resumed.triangles, full.triangles);
     assert_eq!(resumed.face_object, full.face_object);
     assert_eq!(resumed.materials, full.materials);
+    assert_eq!(resumed.emission, full.emission);
+    // The final round re-solved the light (started 8 % low, the change is significant); no object that did not
+    // emit emits now.
+    assert_ne!(full.emission, start_emission);
+    assert!(full.log.last().is_some_and(|r| r.emission == full.emission));
+    for (got, was) in full.emission.iter().zip(&start_emission) {
+        assert_eq!(got.max_element() > 0.0, was.max_element() > 0.0, "{got} from {was}");
+    }
     assert_eq!(resumed.rounds_done, full.rounds_done);
 }

@@ -167,6 +167,98 @@ pub fn solve_step_pinned(
     Ok(loss)
 }
 
+/// Two independent Monte Carlo estimates of a block of Jacobian columns, per channel: `a[i][j]`, `b[i][j]` =
+/// ∂I_j/∂θ_i (RGB) over the solve's pixels (instrumental variables, see [`linear::Problem::second`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Columns<'a> {
+    pub a: &'a [Vec<[f64; 3]>],
+    pub b: &'a [Vec<[f64; 3]>],
+}
+
+/// [`solve_step`]'s per-channel solve on Jacobian columns the caller estimated, for scenes whose material table
+/// is not per object (the per-triangle stage): unknowns are the listed emissions `emission[i]` (columns
+/// `emission_cols`, exact since radiance is linear in emission) and material unknowns `material[i]` (columns
+/// `material_cols`, a linearisation about their current values; empty for an emission-only solve), over the
+/// pixels whose photo values are `targets`. Same estimator: the two column estimates as instrumental
+/// variables, IRLS-L1 (or L2), the relative emission lasso relaxed on its support, e ∈ [0, EMISSION_MAX],
+/// Marquardt damping `opts.damping · mean_j J_ij²` of each material unknown towards its current value and the
+/// box [0, `material_hi[i]`]. Emitters not listed must be held at 0 by the caller. Returns the mean
+/// per-channel L1 residual before the update.
+pub fn solve_on_columns(
+    emission_cols: Columns<'_>,
+    material_cols: Columns<'_>,
+    targets: &[glam::Vec3],
+    emission: &mut [[f64; 3]],
+    material: &mut [[f64; 3]],
+    material_hi: &[[f64; 3]],
+    opts: &SolveOptions,
+) -> f64 {
+    let ne = emission_cols.a.len().min(emission_cols.b.len()).min(emission.len());
+    let nm = material_cols.a.len().min(material_cols.b.len()).min(material.len()).min(material_hi.len());
+    let m = targets.len();
+    let mut loss = 0.0;
+    for c in 0..3 {
+        let chan = |cols: &[Vec<[f64; 3]>], n: usize| -> Vec<Vec<f64>> {
+            (0..n).map(|k| cols[k].iter().map(|v| v[c]).collect()).collect()
+        };
+        let mut cols = chan(emission_cols.a, ne);
+        let mut cols2 = chan(emission_cols.b, ne);
+        let mut target: Vec<f64> = targets.iter().map(|t| f64::from(t[c])).collect();
+        let mut target2 = target.clone();
+        let n = ne + nm;
+        let mut penalty = vec![0.0; n];
+        let mut prox = vec![0.0; n];
+        let mut anchor = vec![0.0; n];
+        let lo = vec![0.0; n];
+        let mut hi = vec![EMISSION_MAX; n];
+        let mut var = vec![0.0; n];
+        for k in 0..ne {
+            let s = cols[k].iter().zip(&cols2[k]).map(|(a, b)| 0.5 * (a + b).abs()).sum::<f64>() / m.max(1) as f64;
+            penalty[k] = opts.emission_l1 * s;
+            var[k] = emission[k][c];
+        }
+        // Mean |residual| of the current parameters (I_j = Σ_k J_jk e_k exactly), before the update.
+        for (j, t) in target.iter().enumerate() {
+            let pred: f64 = (0..ne).map(|k| 0.5 * (cols[k][j] + cols2[k][j]) * var[k]).sum();
+            loss += (t - pred).abs() / (3 * m.max(1)) as f64;
+        }
+        for (i, (ca, cb)) in chan(material_cols.a, nm).into_iter().zip(chan(material_cols.b, nm)).enumerate() {
+            let v = ne + i;
+            let x0 = material[i][c];
+            // Linearisation about x0: I ≈ J_e·e + J_x·(x − x0)  ⇒  target t + J_x·x0 for the variables (e, x).
+            for j in 0..m {
+                target[j] += ca[j] * x0;
+                target2[j] += cb[j] * x0;
+            }
+            let diag = ca.iter().zip(&cb).map(|(a, b)| (a * b).abs()).sum::<f64>() / m.max(1) as f64;
+            prox[v] = opts.damping * diag;
+            anchor[v] = x0;
+            hi[v] = material_hi[i][c];
+            var[v] = x0;
+            cols.push(ca);
+            cols2.push(cb);
+        }
+        let problem = Problem {
+            cols: &cols,
+            target: &target,
+            second: Some((&cols2, &target2)),
+            penalty: &penalty,
+            prox: &prox,
+            anchor: &anchor,
+            lo: &lo,
+            hi: &hi,
+        };
+        solve_relaxed_lasso(problem, ne, opts, &mut var);
+        for (e, v) in emission.iter_mut().zip(&var[..ne]) {
+            e[c] = *v;
+        }
+        for (x, v) in material.iter_mut().zip(&var[ne..]) {
+            x[c] = *v;
+        }
+    }
+    loss
+}
+
 /// One Gauss–Newton step on emission, base colour and — for the objects with `lobe[k]` — roughness and
 /// specular, all channels in one system (roughness and specular couple them). Same estimator as
 /// [`solve_step`]: two independent Jacobian estimates, IRLS-L1 or L2, relative emission lasso then relaxed,
