@@ -96,72 +96,34 @@ pub fn solve_step_pinned(
             Vec::new(),
         )
     };
-    let m = samples.len();
-    let mut loss = 0.0;
-    for c in 0..3 {
-        // Variables: e_0..e_{K-1}, then the free base colours.
-        let free: Vec<usize> = if joint { (0..k_count).filter(|&k| free_base_color[k]).collect() } else { Vec::new() };
-        let n = k_count + free.len();
-        let mut cols: Vec<Vec<f64>> = (0..k_count).map(|k| je[k].iter().map(|v| v[c]).collect()).collect();
-        let mut cols2: Vec<Vec<f64>> = (0..k_count).map(|k| je2[k].iter().map(|v| v[c]).collect()).collect();
-        let mut target: Vec<f64> = samples.iter().map(|s| f64::from(s.target[c])).collect();
-        let mut target2 = target.clone();
-        for &k in &free {
-            let col: Vec<f64> = jr.iter().map(|row| row[k][c]).collect();
-            let col2: Vec<f64> = jr2.iter().map(|row| row[k][c]).collect();
-            let rho0 = x[idx(k, BASE_COLOR + c)];
-            // Linearisation about ρ0: I ≈ J_e·e + J_ρ·(ρ − ρ0)  ⇒  target t + J_ρ·ρ0 for the variables (e, ρ).
-            for j in 0..m {
-                target[j] += col[j] * rho0;
-                target2[j] += col2[j] * rho0;
-            }
-            cols.push(col);
-            cols2.push(col2);
+    // Variables: e_0..e_{K-1}, then the free base colours, with their columns ∂I_j/∂ρ_k from the pixel rows.
+    let free: Vec<usize> = if joint { (0..k_count).filter(|&k| free_base_color[k]).collect() } else { Vec::new() };
+    let base_color_cols = |rows: &[Vec<[f64; 3]>]| -> Vec<Vec<[f64; 3]>> {
+        free.iter().map(|&k| rows.iter().map(|row| row[k]).collect()).collect()
+    };
+    let (jm, jm2) = (base_color_cols(&jr), base_color_cols(&jr2));
+    let targets: Vec<glam::Vec3> = samples.iter().map(|s| s.target).collect();
+    let triple = |k: usize, at: usize| [x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]];
+    let mut emission: Vec<[f64; 3]> = (0..k_count).map(|k| triple(k, EMISSION)).collect();
+    let mut base_color: Vec<[f64; 3]> = free.iter().map(|&k| triple(k, BASE_COLOR)).collect();
+    let loss = solve_on_columns(
+        Columns { a: &je, b: &je2 },
+        Columns { a: &jm, b: &jm2 },
+        &targets,
+        &mut emission,
+        no_emission,
+        &mut base_color,
+        &vec![[1.0; 3]; free.len()],
+        opts,
+    );
+    for (k, e) in emission.iter().enumerate() {
+        for c in 0..3 {
+            x[idx(k, EMISSION + c)] = e[c];
         }
-        let mut penalty = vec![0.0; n];
-        let mut prox = vec![0.0; n];
-        let mut anchor = vec![0.0; n];
-        let lo = vec![0.0; n];
-        let mut hi = vec![EMISSION_MAX; n];
-        let mut var = vec![0.0; n];
-        for k in 0..k_count {
-            let s = cols[k].iter().zip(&cols2[k]).map(|(a, b)| 0.5 * (a + b).abs()).sum::<f64>() / m.max(1) as f64;
-            penalty[k] = opts.emission_l1 * s;
-            var[k] = x[idx(k, EMISSION + c)];
-            if no_emission.get(k).copied().unwrap_or(false) {
-                hi[k] = 0.0;
-                var[k] = 0.0;
-            }
-        }
-        for (i, &k) in free.iter().enumerate() {
-            let v = k_count + i;
-            let diag = cols[v].iter().zip(&cols2[v]).map(|(a, b)| (a * b).abs()).sum::<f64>() / m.max(1) as f64;
-            prox[v] = opts.damping * diag;
-            anchor[v] = x[idx(k, BASE_COLOR + c)];
-            hi[v] = 1.0;
-            var[v] = anchor[v];
-        }
-        // Mean |residual| of the current parameters (I_j = Σ_k J_jk e_k exactly), before the update.
-        for j in 0..m {
-            let pred: f64 = (0..k_count).map(|k| 0.5 * (cols[k][j] + cols2[k][j]) * x[idx(k, EMISSION + c)]).sum();
-            loss += (f64::from(samples[j].target[c]) - pred).abs() / (3 * m.max(1)) as f64;
-        }
-        let problem = Problem {
-            cols: &cols,
-            target: &target,
-            second: Some((&cols2, &target2)),
-            penalty: &penalty,
-            prox: &prox,
-            anchor: &anchor,
-            lo: &lo,
-            hi: &hi,
-        };
-        solve_relaxed_lasso(problem, k_count, opts, &mut var);
-        for k in 0..k_count {
-            x[idx(k, EMISSION + c)] = var[k];
-        }
-        for (i, &k) in free.iter().enumerate() {
-            x[idx(k, BASE_COLOR + c)] = var[k_count + i];
+    }
+    for (&k, rho) in free.iter().zip(&base_color) {
+        for c in 0..3 {
+            x[idx(k, BASE_COLOR + c)] = rho[c];
         }
     }
     Ok(loss)
@@ -182,13 +144,17 @@ pub struct Columns<'a> {
 /// pixels whose photo values are `targets`. Same estimator: the two column estimates as instrumental
 /// variables, IRLS-L1 (or L2), the relative emission lasso relaxed on its support, e ∈ [0, EMISSION_MAX],
 /// Marquardt damping `opts.damping · mean_j J_ij²` of each material unknown towards its current value and the
-/// box [0, `material_hi[i]`]. Emitters not listed must be held at 0 by the caller. Returns the mean
-/// per-channel L1 residual before the update.
+/// box [0, `material_hi[i]`]. Emissions with `emission_pinned[i]` are held at 0 (a model-selection verdict;
+/// the slice may be shorter than `emission`: missing entries are free); emitters not listed at all must be held
+/// at 0 by the caller. Returns the mean per-channel L1 residual before the update. The one assembly of these
+/// problems: the object stage's [`solve_step`] and the per-triangle stage's light re-solve both call it.
+#[allow(clippy::too_many_arguments)]
 pub fn solve_on_columns(
     emission_cols: Columns<'_>,
     material_cols: Columns<'_>,
     targets: &[glam::Vec3],
     emission: &mut [[f64; 3]],
+    emission_pinned: &[bool],
     material: &mut [[f64; 3]],
     material_hi: &[[f64; 3]],
     opts: &SolveOptions,
@@ -221,6 +187,10 @@ pub fn solve_on_columns(
         for (j, t) in target.iter().enumerate() {
             let pred: f64 = (0..ne).map(|k| 0.5 * (cols[k][j] + cols2[k][j]) * var[k]).sum();
             loss += (t - pred).abs() / (3 * m.max(1)) as f64;
+        }
+        for k in (0..ne).filter(|&k| emission_pinned.get(k).copied().unwrap_or(false)) {
+            hi[k] = 0.0;
+            var[k] = 0.0;
         }
         for (i, (ca, cb)) in chan(material_cols.a, nm).into_iter().zip(chan(material_cols.b, nm)).enumerate() {
             let v = ne + i;
