@@ -64,32 +64,39 @@ pub fn collect(
 ) -> PixelSets {
     let mut sets = PixelSets { train_per_object: vec![0; objects], ..Default::default() };
     for (view, (cam, img)) in cameras.iter().zip(images).enumerate() {
-        for y in 0..img.height.min(cam.height) {
-            for x in 0..img.width.min(cam.width) {
-                let i = (y * img.width + x) as usize;
-                let t = Vec3::new(img.rgb[3 * i], img.rgb[3 * i + 1], img.rgb[3 * i + 2]);
-                if img.mask[i] == 0 || !t.is_finite() {
-                    continue;
+        for (x, y, t) in valid_pixels(cam, img) {
+            let (o, d) = cam.ray(Vec2::new(x as f32, y as f32));
+            let object = scene.intersect(o, d, f32::INFINITY).map(|(hit, _)| scene.material_of(hit.tri));
+            let pixel = PixelRef { view: view as u32, x, y };
+            let s = Sample { pixel, target: t, object };
+            let key = pixel_key(pixel);
+            if uniform(seed, stream::HOLDOUT, key, 0) < holdout_fraction {
+                sets.holdout.push(s);
+            } else {
+                if let Some(k) = object
+                    && (k as usize) < objects
+                {
+                    sets.train_per_object[k as usize] += 1;
                 }
-                let (o, d) = cam.ray(Vec2::new(x as f32, y as f32));
-                let object = scene.intersect(o, d, f32::INFINITY).map(|(hit, _)| scene.material_of(hit.tri));
-                let pixel = PixelRef { view: view as u32, x, y };
-                let s = Sample { pixel, target: t, object };
-                let key = pixel_key(pixel);
-                if uniform(seed, stream::HOLDOUT, key, 0) < holdout_fraction {
-                    sets.holdout.push(s);
-                } else {
-                    if let Some(k) = object
-                        && (k as usize) < objects
-                    {
-                        sets.train_per_object[k as usize] += 1;
-                    }
-                    sets.train.push(s);
-                }
+                sets.train.push(s);
             }
         }
     }
     sets
+}
+
+/// The valid pixels of one image seen by `cam` — mask ≠ 0 and finite RGB, within both sizes — as (column,
+/// row, target radiance) in row-major order: the one definition of a usable photo pixel for both fits.
+pub fn valid_pixels<'a>(
+    cam: &tracer::Camera,
+    img: &'a ingest::photo::LinearImage,
+) -> impl Iterator<Item = (u32, u32, Vec3)> + 'a {
+    let (w, h) = (img.width.min(cam.width), img.height.min(cam.height));
+    (0..h).flat_map(move |y| (0..w).map(move |x| (x, y))).filter_map(move |(x, y)| {
+        let i = (y * img.width + x) as usize;
+        let t = Vec3::new(img.rgb[3 * i], img.rgb[3 * i + 1], img.rgb[3 * i + 2]);
+        (img.mask[i] != 0 && t.is_finite()).then_some((x, y, t))
+    })
 }
 
 /// `n` samples drawn uniformly with replacement from `from`, keyed by (seed, stream, draw).

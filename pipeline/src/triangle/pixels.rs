@@ -48,30 +48,23 @@ pub fn collect(
         .enumerate()
         .map(|(view, (cam, img))| {
             let mut out = Vec::new();
-            for y in 0..img.height.min(cam.height) {
-                for x in 0..img.width.min(cam.width) {
-                    let i = (y * img.width + x) as usize;
-                    let t = Vec3::new(img.rgb[3 * i], img.rgb[3 * i + 1], img.rgb[3 * i + 2]);
-                    if img.mask[i] == 0 || !t.is_finite() {
-                        continue;
-                    }
-                    let hit_at = |dx: f32, dy: f32| {
-                        let (o, d) = cam.ray(Vec2::new(x as f32 + dx, y as f32 + dy));
-                        scene.embree().intersect(o, d, 0.0, f32::INFINITY)
-                    };
-                    let Some(h) = hit_at(0.0, 0.0) else { continue };
-                    // The pixel's footprint is the box ±½ around its centre (the tracer's box filter).
-                    let interior = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
-                        .iter()
-                        .all(|&(dx, dy)| hit_at(dx, dy).is_some_and(|c| c.prim_id == h.prim_id));
-                    out.push(TriSample {
-                        pixel: PixelRef { view: view as u32, x, y },
-                        target: t,
-                        tri: h.prim_id,
-                        child: child_of(h.u, h.v),
-                        interior,
-                    });
-                }
+            for (x, y, t) in crate::fit::pixels::valid_pixels(cam, img) {
+                let hit_at = |dx: f32, dy: f32| {
+                    let (o, d) = cam.ray(Vec2::new(x as f32 + dx, y as f32 + dy));
+                    scene.embree().intersect(o, d, 0.0, f32::INFINITY)
+                };
+                let Some(h) = hit_at(0.0, 0.0) else { continue };
+                // The pixel's footprint is the box ±½ around its centre (the tracer's box filter).
+                let interior = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
+                    .iter()
+                    .all(|&(dx, dy)| hit_at(dx, dy).is_some_and(|c| c.prim_id == h.prim_id));
+                out.push(TriSample {
+                    pixel: PixelRef { view: view as u32, x, y },
+                    target: t,
+                    tri: h.prim_id,
+                    child: child_of(h.u, h.v),
+                    interior,
+                });
             }
             out
         })
