@@ -159,7 +159,7 @@ pub(crate) fn adam_iteration(
 }
 
 /// Solve pixels of solve number `key`: `solve_pixels` training pixels drawn uniformly.
-fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> Vec<Sample> {
+pub(super) fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> Vec<Sample> {
     pixels::draw(&sets.train, s.solve_pixels as usize, seed, stream::SOLVE_PIXELS, key)
 }
 

@@ -2,11 +2,11 @@
 //! term or gains a specular lobe only when that lowers the residual on held-out pixels significantly (a
 //! paired t-test over the held-out pixels, plus a minimum relative improvement).
 
-use super::emission_solve::{Unknowns, solve_step, solve_step_pinned};
+use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, idx};
 use super::linear;
-use super::object::{keys, solve_options};
+use super::object::{keys, solve_options, solve_samples};
 use super::pixels::{PixelSets, Sample};
 use super::roughness;
 use super::{FitError, ObjectFitSettings, ObjectModel};
@@ -52,6 +52,48 @@ pub fn paired_t(d: &[f64]) -> (f64, f64) {
         0.0
     };
     (mean, t)
+}
+
+/// Gauss–Newton steps on emission (and base colour, per `unknowns`) after a model change, each on freshly drawn
+/// solve pixels, with base colour and emission averaged over the second half of the steps (as the
+/// refinement's result is): the closing re-fits of the specular trial and of a dropped emission.
+struct AveragedSteps {
+    unknowns: Unknowns,
+    /// Number of steps (≥ 1); step i ∈ 1..=steps uses random-number key `key + i`.
+    steps: u32,
+    key: u64,
+}
+
+impl AveragedSteps {
+    /// Runs the steps on `x` with the emission of every object with `no_emission[k]` held at 0.
+    fn apply(
+        &self,
+        ctx: &Ctx<'_>,
+        s: &ObjectFitSettings,
+        sets: &PixelSets,
+        x: &mut [f64],
+        free: &[bool],
+        no_emission: &[bool],
+    ) -> Result<(), FitError> {
+        let opts = solve_options(s, self.unknowns);
+        let mut sum = vec![0.0; x.len()];
+        let mut n_avg = 0.0;
+        for step in 1..=self.steps {
+            let key = self.key + u64::from(step);
+            let samples = solve_samples(sets, s, ctx.seed, key);
+            solve_step_pinned(ctx, x, &samples, s.solve_spp, key, free, no_emission, &opts)?;
+            if step > self.steps / 2 {
+                sum.iter_mut().zip(x.iter()).for_each(|(a, v)| *a += v);
+                n_avg += 1.0;
+            }
+        }
+        for k in 0..x.len() / PER_OBJECT {
+            for p in (BASE_COLOR..BASE_COLOR + 3).chain(EMISSION..EMISSION + 3) {
+                x[idx(k, p)] = sum[idx(k, p)] / n_avg;
+            }
+        }
+        Ok(())
+    }
 }
 
 fn l1(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -181,28 +223,9 @@ pub fn choose_models(
             // albedo +5 %, light −2 %). Without steps, only the emission is re-solved.
             let steps = s.specular_trial_steps;
             let unknowns = if steps == 0 { Unknowns::Emission } else { Unknowns::EmissionAndBaseColor };
-            let mut sum = vec![0.0; x.len()];
-            let mut n_avg = 0.0;
-            for step in 1..=steps.max(1) {
-                let key = keys::SELECT + (2 << 20) + u64::from(step);
-                let samples = super::pixels::draw(
-                    &sets.train,
-                    s.solve_pixels as usize,
-                    ctx.seed,
-                    super::pixels::stream::SOLVE_PIXELS,
-                    key,
-                );
-                solve_step(ctx, &mut x, &samples, s.solve_spp, key, free, &solve_options(s, unknowns))?;
-                if step > steps / 2 {
-                    sum.iter_mut().zip(&x).for_each(|(a, v)| *a += v);
-                    n_avg += 1.0;
-                }
-            }
-            for k in 0..k_count {
-                for p in (BASE_COLOR..BASE_COLOR + 3).chain(EMISSION..EMISSION + 3) {
-                    x[idx(k, p)] = sum[idx(k, p)] / n_avg;
-                }
-            }
+            let none = vec![false; k_count];
+            let run = AveragedSteps { unknowns, steps: steps.max(1), key: keys::SELECT + (2 << 20) };
+            run.apply(ctx, s, sets, &mut x, free, &none)?;
         }
     }
 
@@ -296,30 +319,12 @@ pub fn choose_models(
         // A dropped emission had been standing in for albedo: re-fit emission and base colour under the chosen
         // model (non-emitters pinned at 0), averaging the steps' second half like the refinement.
         let no_emission: Vec<bool> = emits.iter().map(|e| !e).collect();
-        let steps = s.refine_steps.max(2);
-        let mut sum = vec![0.0; x.len()];
-        let mut n_avg = 0.0;
-        for step in 1..=steps {
-            let key = keys::SELECT + (6 << 20) + u64::from(step);
-            let samples = super::pixels::draw(
-                &sets.train,
-                s.solve_pixels as usize,
-                ctx.seed,
-                super::pixels::stream::SOLVE_PIXELS,
-                key,
-            );
-            let opts = solve_options(s, Unknowns::EmissionAndBaseColor);
-            solve_step_pinned(ctx, &mut x, &samples, s.solve_spp, key, free, &no_emission, &opts)?;
-            if step > steps / 2 {
-                sum.iter_mut().zip(&x).for_each(|(a, v)| *a += v);
-                n_avg += 1.0;
-            }
-        }
-        for k in 0..k_count {
-            for p in (BASE_COLOR..BASE_COLOR + 3).chain(EMISSION..EMISSION + 3) {
-                x[idx(k, p)] = sum[idx(k, p)] / n_avg;
-            }
-        }
+        let run = AveragedSteps {
+            unknowns: Unknowns::EmissionAndBaseColor,
+            steps: s.refine_steps.max(2),
+            key: keys::SELECT + (6 << 20),
+        };
+        run.apply(ctx, s, sets, &mut x, free, &no_emission)?;
     }
     let models = (0..k_count)
         .map(|k| {
