@@ -1,8 +1,9 @@
 //! Determinism and resume: the same seed gives the same result, and a fit stopped at a checkpoint and resumed
 //! from its serialised state ends bit-identical to an uninterrupted run.
 
-use pipeline::fit::{FitError, FitInputs, FitOutcome, FitState, ObjectFitSettings};
-use std::path::Path;
+mod common;
+
+use pipeline::fit::{FitError, FitOutcome, FitState, ObjectFitSettings};
 
 fn run(
     built: &pipeline::synth::BuiltScene,
@@ -12,15 +13,6 @@ fn run(
     stop_at: Option<u32>,
     saved: &mut Option<String>,
 ) -> Result<FitOutcome, FitError> {
-    let objects = pipeline::synth::fit_objects(built);
-    let inputs = FitInputs {
-        scene: &built.scene,
-        cameras: &built.cameras,
-        images,
-        objects: &objects,
-        settings,
-        tracer: &built.settings,
-    };
     let mut on_checkpoint = |st: &FitState| {
         *saved = Some(serde_json::to_string(st).unwrap());
         if Some(st.iteration) == stop_at {
@@ -28,17 +20,13 @@ fn run(
         }
         Ok(())
     };
-    pipeline::fit::fit_objects(&inputs, resume, &mut on_checkpoint, &indicatif::ProgressBar::hidden())
+    pipeline::synth::fit_resumable(built, images, settings, resume, &mut on_checkpoint)
 }
 
 #[test]
 fn same_seed_same_result_and_resume_equals_uninterrupted() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/small.toml");
-    let mut desc = pipeline::synth::load_desc(&path).unwrap();
     // Photos at fewer paths: this test compares runs with each other, not with the truth.
-    desc.spp = 64;
-    let built = pipeline::synth::build(desc, &path).unwrap();
-    let images = pipeline::synth::photos(&built).unwrap();
+    let (built, images) = common::synth_scene("small", 64);
     let settings = ObjectFitSettings {
         iterations: 12,
         refine_steps: 3,

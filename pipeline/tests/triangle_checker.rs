@@ -10,7 +10,7 @@
 //! `target/triangle_checker/` for tests/validation/test_triangle_export.py.
 
 mod common;
-use common::pipeline;
+use common::{copy_dir, pipeline};
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
@@ -24,18 +24,6 @@ fn f32_col(mesh: &ingest::ply::PlyMesh, name: &str) -> Vec<f32> {
     match mesh.face_prop(name) {
         Some(FaceValues::F32(v)) => v.clone(),
         other => panic!("face column {name}: {other:?}"),
-    }
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        if e.file_type().unwrap().is_dir() {
-            copy_dir(&e.path(), &to.join(e.file_name()));
-        } else {
-            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-        }
     }
 }
 

@@ -5,18 +5,14 @@
 //! 128-path photos, started from the true per-object values but a light 8 % low (as the object stage leaves it
 //! at `iterations = 0`), so that the final round's light-change test finds the light wrong and re-solves it.
 
-use std::path::Path;
+mod common;
 
 use pipeline::config::TriangleConfig;
 use pipeline::triangle::{RoundInputs, TriangleError, TriangleState, run_rounds};
 
 #[test]
 fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/checker.toml");
-    let mut desc = pipeline::synth::load_desc(&path).unwrap();
-    desc.spp = 128;
-    let built = pipeline::synth::build(desc, &path).unwrap();
-    let images = pipeline::synth::photos(&built).unwrap();
+    let (built, images) = common::synth_scene("checker", 128);
     let k = built.desc.objects.len();
     let mut start = pipeline::synth::true_triangle_start(&built).unwrap();
     // 8 %: ~10 standard errors of the light-change test's averaged steps (scatter ±1.5 % per step), so the

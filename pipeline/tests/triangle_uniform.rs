@@ -7,19 +7,15 @@
 //! split test's p-values of the final state are not smaller than uniform ones (residual noise independent per
 //! pixel, the F test calibrated). In-memory scene with 256-path photos; the stage runs with its default settings.
 
-use std::path::Path;
+mod common;
 
 use pipeline::config::TriangleConfig;
 use pipeline::triangle::{RoundInputs, fit, pixels, run_rounds, split};
 
 #[test]
 fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/demo.toml");
-    let mut desc = pipeline::synth::load_desc(&path).unwrap();
     // Photo noise: 256 paths per pixel (the fixture's 1024 would only lower it; 256 keeps the test short).
-    desc.spp = 256;
-    let built = pipeline::synth::build(desc, &path).unwrap();
-    let images = pipeline::synth::photos(&built).unwrap();
+    let (built, images) = common::synth_scene("demo", 256);
     let k = built.desc.objects.len();
     let start = pipeline::synth::true_triangle_start(&built).unwrap();
     let config = TriangleConfig::default();

@@ -318,6 +318,18 @@ pub fn fit(
     images: &[ingest::photo::LinearImage],
     settings: &crate::fit::ObjectFitSettings,
 ) -> Result<crate::fit::FitOutcome, crate::fit::FitError> {
+    fit_resumable(built, images, settings, None, &mut |_| Ok(()))
+}
+
+/// [`fit`] continued from `resume` (when given), calling `on_checkpoint` at every checkpoint (as the object stage
+/// does), without a visible progress bar.
+pub fn fit_resumable(
+    built: &BuiltScene,
+    images: &[ingest::photo::LinearImage],
+    settings: &crate::fit::ObjectFitSettings,
+    resume: Option<crate::fit::FitState>,
+    on_checkpoint: &mut dyn FnMut(&crate::fit::FitState) -> Result<(), crate::fit::FitError>,
+) -> Result<crate::fit::FitOutcome, crate::fit::FitError> {
     let objects = fit_objects(built);
     let inputs = crate::fit::FitInputs {
         scene: &built.scene,
@@ -327,7 +339,7 @@ pub fn fit(
         settings,
         tracer: &built.settings,
     };
-    crate::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &indicatif::ProgressBar::hidden())
+    crate::fit::fit_objects(&inputs, resume, on_checkpoint, &indicatif::ProgressBar::hidden())
 }
 
 /// The per-triangle stage's start on a synthetic scene with its true per-object values (what the object stage

@@ -1,7 +1,8 @@
-//! Helpers shared by the integration tests that drive the `pipeline` binary. Each test crate uses a subset, so
-//! unused items are allowed here.
+//! Helpers shared by the integration tests: running the `pipeline` binary, copying scans, loading a bundled
+//! synthetic scene with its photos. Each test crate uses a subset, so unused items are allowed here.
 #![allow(dead_code)]
 
+use std::path::Path;
 use std::process::Command;
 
 /// Runs the built `pipeline` binary (without RUST_LOG, so stderr holds only its own lines): exit code and stderr.
@@ -19,4 +20,28 @@ pub fn decisions(stderr: &str, what: &str) -> Vec<String> {
             rest.starts_with(what).then(|| stage.to_owned())
         })
         .collect()
+}
+
+/// Copies directory `from` (recursively) to `to`.
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+/// The bundled scene `data-fixtures/scenes/<name>.toml` with its photos rendered in memory at `spp` paths per
+/// pixel (instead of the description's own count).
+pub fn synth_scene(name: &str, spp: u32) -> (pipeline::synth::BuiltScene, Vec<ingest::photo::LinearImage>) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../data-fixtures/scenes/{name}.toml"));
+    let mut desc = pipeline::synth::load_desc(&path).unwrap();
+    desc.spp = spp;
+    let built = pipeline::synth::build(desc, &path).unwrap();
+    let images = pipeline::synth::photos(&built).unwrap();
+    (built, images)
 }
