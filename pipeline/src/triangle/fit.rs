@@ -271,6 +271,15 @@ pub fn shrink_to_object(
         .collect()
 }
 
+/// The object fit's bound on discarded path samples (`crate::fit::samples`), applied to a round's work.
+fn bound_discards(round: u32, discarded: u64, paths: u64) -> Result<(), TriangleError> {
+    if crate::fit::samples::within_bound(discarded, paths) {
+        Ok(())
+    } else {
+        Err(TriangleError::TooManyDiscarded { round, discarded, paths })
+    }
+}
+
 /// Runs the fit of one round on `state` (updated in place): `fit_steps` ratio steps under the current light.
 pub fn fit_round(
     inputs: &RoundInputs<'_>,
@@ -381,15 +390,7 @@ pub fn fit_pass(
     if work.discarded > 0 {
         tracing::warn!(round, discarded = work.discarded, paths = work.paths, "non-finite path samples discarded");
     }
-    if !crate::fit::samples::within_bound(work.discarded, work.paths) {
-        return Err(TriangleError::Input(format!(
-            "round {round}: the tracer discarded {} of {} path samples as non-finite (f32 overflow), more than \
-             the accepted fraction of {:e}",
-            work.discarded,
-            work.paths,
-            crate::fit::samples::MAX_DISCARDED_FRACTION
-        )));
-    }
+    bound_discards(round, work.discarded, work.paths)?;
     Ok(Fitted { loss, residual, free, traced_paths: work.paths, discarded_samples: work.discarded })
 }
 
@@ -609,7 +610,8 @@ pub fn refine_light(
     for cycle in 0..LIGHT_CYCLES {
         let base: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
         let mut cumulative = vec![DVec3::ONE; objects];
-        let (mut sum_e, mut sum_s, mut n) = (vec![DVec3::ZERO; objects], vec![DVec3::ZERO; objects], 0.0);
+        let (mut sum_s, mut n) = (vec![DVec3::ZERO; objects], 0.0);
+        // Per averaged step, the emitters' emission (in `emitters` order).
         let mut averaged: Vec<Vec<DVec3>> = Vec::new();
         for i in 0..LIGHT_STEPS {
             let pass = cycle * LIGHT_STEPS + i + 1;
@@ -619,13 +621,15 @@ pub fn refine_light(
             }
             if i >= LIGHT_BURN_IN.min(LIGHT_STEPS - 1) {
                 for o in 0..objects {
-                    sum_e[o] += state.emission[o].as_dvec3();
                     sum_s[o] += cumulative[o];
                 }
                 averaged.push(emitters.iter().map(|&o| state.emission[o].as_dvec3()).collect());
                 n += 1.0;
             }
         }
+        // The averaged light, per emitter.
+        let mean_e: Vec<DVec3> =
+            (0..emitters.len()).map(|j| averaged.iter().map(|a| a[j]).sum::<DVec3>() / n).collect();
         if cycle == 0 {
             // The gate: the object stage's light stays unless the first cycle moved it significantly beyond
             // its own Monte Carlo scatter. A uniform scene's per-triangle model is its per-object model, whose
@@ -635,7 +639,7 @@ pub fn refine_light(
             // skipped.
             let from: Vec<DVec3> = emitters.iter().map(|&o| start[o].as_dvec3()).collect();
             let p = light_change_p(&from, &averaged);
-            let proposed: Vec<[f32; 3]> = emitters.iter().map(|&o| (sum_e[o] / n).as_vec3().to_array()).collect();
+            let proposed: Vec<[f32; 3]> = mean_e.iter().map(|e| e.as_vec3().to_array()).collect();
             tracing::debug!(round, p, ?proposed, "triangle light change test");
             if p > LIGHT_SIGNIFICANCE {
                 state.emission.clone_from(&start);
@@ -645,19 +649,13 @@ pub fn refine_light(
                      {LIGHT_SIGNIFICANCE}, no significant change)",
                     emitters.iter().map(|&o| start[o].to_array()).collect::<Vec<_>>()
                 );
-                if !crate::fit::samples::within_bound(work.discarded, work.paths) {
-                    return Err(TriangleError::Input(format!(
-                        "round {round}: the tracer discarded {} of {} path samples as non-finite in the light \
-                         refinement",
-                        work.discarded, work.paths
-                    )));
-                }
+                bound_discards(round, work.discarded, work.paths)?;
                 return Ok(None);
             }
             eprintln!("[triangle] round {round}: light change significant (p = {p:.2e}), proposed {proposed:?}");
         }
-        for &o in &emitters {
-            state.emission[o] = (sum_e[o] / n).as_vec3();
+        for (&o, e) in emitters.iter().zip(&mean_e) {
+            state.emission[o] = e.as_vec3();
         }
         for (t, m) in state.materials.iter_mut().enumerate() {
             if free[t] {
@@ -681,12 +679,7 @@ pub fn refine_light(
     );
     fitted.traced_paths += work.paths;
     fitted.discarded_samples += work.discarded;
-    if !crate::fit::samples::within_bound(fitted.discarded_samples, fitted.traced_paths) {
-        return Err(TriangleError::Input(format!(
-            "round {round}: the tracer discarded {} of {} path samples as non-finite in the light refinement",
-            fitted.discarded_samples, fitted.traced_paths
-        )));
-    }
+    bound_discards(round, fitted.discarded_samples, fitted.traced_paths)?;
     Ok(Some(fitted))
 }
 

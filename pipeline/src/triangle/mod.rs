@@ -270,6 +270,14 @@ pub enum TriangleError {
     Input(String),
     #[error("triangle fit: writing a checkpoint: {0}")]
     Checkpoint(String),
+    /// More than the object fit's bound ([`crate::fit::samples::MAX_DISCARDED_FRACTION`]) of a round's path
+    /// samples were discarded as non-finite.
+    #[error(
+        "triangle fit: round {round}: the tracer discarded {discarded} of {paths} path samples as non-finite \
+         (f32 overflow), more than the accepted fraction of {bound:e}",
+        bound = crate::fit::samples::MAX_DISCARDED_FRACTION
+    )]
+    TooManyDiscarded { round: u32, discarded: u64, paths: u64 },
 }
 
 /// Everything the rounds read besides the state.
