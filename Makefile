@@ -1,5 +1,5 @@
 # The two commands the README opens with. Each runs scripts/setup first (idempotent, ~1 s when done).
-.PHONY: setup demo test lint rust-test validation bench
+.PHONY: setup demo test lint rust-test isa-test validation bench
 
 CARGO ?= cargo
 PY := deps/venv/bin/python
@@ -12,8 +12,9 @@ demo: setup
 	$(CARGO) build --release -p pipeline
 	target/release/pipeline run configs/demo.toml
 
-## Builds and runs every Rust test and the Python validation suite; non-zero exit on any failure.
-test: setup lint rust-test validation
+## Builds and runs every Rust test (natively, then the tracer's and the end-to-end tests again under Embree's
+## SSE4.2, AVX and AVX2 kernels) and the Python validation suite; non-zero exit on any failure.
+test: setup lint rust-test isa-test validation
 
 lint:
 	$(CARGO) fmt --all --check
@@ -21,6 +22,10 @@ lint:
 
 rust-test:
 	$(CARGO) test --workspace --locked
+
+# Embree rounds hits differently per instruction set: the tests must hold under every one (scripts/test-isa).
+isa-test: rust-test
+	scripts/test-isa
 
 # The validation suite runs our example binaries, which `cargo test` has built into target/debug/examples.
 validation:

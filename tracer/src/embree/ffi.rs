@@ -17,6 +17,11 @@ pub const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
 // enum RTCError
 pub const RTC_ERROR_NONE: u32 = 0;
 
+// enum RTCDeviceProperty (rtcore_device.h)
+pub const RTC_DEVICE_PROPERTY_VERSION: u32 = 0;
+pub const RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED: u32 = 33;
+pub const RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED: u32 = 34;
+
 // enum RTCGeometryType
 pub const RTC_GEOMETRY_TYPE_TRIANGLE: u32 = 0;
 
@@ -91,6 +96,7 @@ unsafe extern "C" {
     pub fn rtcReleaseDevice(device: RTCDevice);
     pub fn rtcGetDeviceError(device: RTCDevice) -> u32;
     pub fn rtcGetDeviceLastErrorMessage(device: RTCDevice) -> *const c_char;
+    pub fn rtcGetDeviceProperty(device: RTCDevice, prop: u32) -> isize;
 
     pub fn rtcNewScene(device: RTCDevice) -> RTCScene;
     pub fn rtcReleaseScene(scene: RTCScene);

@@ -5,12 +5,13 @@
 //! After `commit`, Embree documents scenes as safe to query concurrently from any number of threads, which is
 //! what makes [`TriangleScene`] `Send + Sync`.
 
+pub mod config;
 mod ffi;
 #[cfg(feature = "ray-log")]
 pub mod ray_log;
 
 use glam::Vec3;
-use std::ffi::CStr;
+use std::ffi::{CStr, CString};
 
 /// An Embree failure, with the operation that failed and Embree's own message.
 #[derive(Debug, thiserror::Error)]
@@ -23,6 +24,36 @@ pub enum EmbreeError {
     TooLarge(usize),
     #[error("embree: triangle {tri} references vertex {index} but the mesh has {vertices} vertices")]
     IndexOutOfRange { tri: usize, index: u32, vertices: usize },
+    #[error("embree: {var}={value:?}: {reason}")]
+    Config { var: &'static str, value: String, reason: String },
+}
+
+/// What the Embree device in use is: the configuration it was created with (from
+/// [`config::CONFIG_ENV`]), Embree's version and the widest ray packet its active kernels support natively
+/// (4 for SSE, 8 for AVX/AVX2, 16 for AVX-512): the instruction set that decides how hits round.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DeviceInfo {
+    pub config: String,
+    pub version: u32,
+    pub simd_width: u32,
+}
+
+impl std::fmt::Display for DeviceInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let v = self.version;
+        let cfg = if self.config.is_empty() { "native" } else { &self.config };
+        write!(f, "Embree {}.{}.{} ({cfg}, {}-wide kernels)", v / 10000, v / 100 % 100, v % 100, self.simd_width)
+    }
+}
+
+/// The device that [`TriangleScene::new`] creates, described: the configuration from the environment.
+pub fn device_info() -> Result<DeviceInfo, EmbreeError> {
+    Device::new()?.info()
+}
+
+/// A device created with the given configuration (checked by [`config::parse`]), described.
+pub fn device_info_with(config: &str) -> Result<DeviceInfo, EmbreeError> {
+    Device::with_config(config::parse(config)?)?.info()
 }
 
 /// A closest hit: distance along the (unnormalised) ray direction, triangle index, barycentrics (u, v) of
@@ -36,21 +67,45 @@ pub struct RayHit {
     pub ng: Vec3,
 }
 
-struct Device(ffi::RTCDevice);
+struct Device(ffi::RTCDevice, CString);
 
 impl Device {
+    /// A device configured by the environment ([`config::from_env`]).
     fn new() -> Result<Self, EmbreeError> {
-        // Empty config string: Embree picks the ISA and thread count itself; it builds BVHs with TBB threads,
-        // while queries run on the caller's (rayon) threads.
+        Self::with_config(config::from_env()?)
+    }
+
+    /// An empty configuration lets Embree pick the instruction set and thread count itself; it builds BVHs
+    /// with TBB threads, while queries run on the caller's (rayon) threads.
+    fn with_config(cfg: CString) -> Result<Self, EmbreeError> {
         // SAFETY: the pointer is a valid NUL-terminated C string for the duration of the call.
-        let raw = unsafe { ffi::rtcNewDevice(c"".as_ptr()) };
+        let raw = unsafe { ffi::rtcNewDevice(cfg.as_ptr()) };
         if raw.is_null() {
             // rtcGetDeviceError(NULL) reports errors of device creation.
             // SAFETY: null is the documented argument for device-creation errors.
             let code = unsafe { ffi::rtcGetDeviceError(std::ptr::null_mut()) };
             return Err(EmbreeError::Call { op: "rtcNewDevice", code, message: "device creation failed".into() });
         }
-        Ok(Device(raw))
+        Ok(Device(raw, cfg))
+    }
+
+    fn info(&self) -> Result<DeviceInfo, EmbreeError> {
+        // SAFETY: self.0 is a live device handle; the properties queried exist in Embree 4.4.
+        let prop = |p| unsafe { ffi::rtcGetDeviceProperty(self.0, p) };
+        let version = prop(ffi::RTC_DEVICE_PROPERTY_VERSION);
+        let simd_width = if prop(ffi::RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) != 0 {
+            16
+        } else if prop(ffi::RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED) != 0 {
+            8
+        } else {
+            4
+        };
+        self.check("rtcGetDeviceProperty")?;
+        Ok(DeviceInfo {
+            config: self.1.to_string_lossy().into_owned(),
+            version: u32::try_from(version).unwrap_or(0),
+            simd_width,
+        })
     }
 
     /// Turns a pending device error into `Err`, naming the operation.
@@ -183,6 +238,11 @@ impl TriangleScene {
         }
     }
 
+    /// The device this scene was built on.
+    pub fn device_info(&self) -> Result<DeviceInfo, EmbreeError> {
+        self.device.info()
+    }
+
     /// Number of triangles (primitive ids are `0..triangles()`).
     #[must_use]
     pub fn triangles(&self) -> usize {
@@ -277,12 +337,15 @@ mod tests {
     }
 
     #[test]
-    fn intersects_known_triangle_exactly() {
+    fn intersects_known_triangle() {
         let s = unit_triangle();
         let h = s.intersect(Vec3::new(0.25, 0.25, 2.0), Vec3::new(0.0, 0.0, -1.0), 0.0, f32::INFINITY).expect("hit");
         assert_eq!(h.prim_id, 0);
-        assert_eq!(h.t, 2.0);
-        assert!((h.u - 0.25).abs() < 1e-6 && (h.v - 0.25).abs() < 1e-6, "{h:?}");
+        // Embree's kernels differ by instruction set (SSE4.2 gives 2.0, AVX2 1.9999999): a hit distance is
+        // exact only to a few ulps of t. 4 ulps of 2.0 = 9.5e-7; u and v are within 4 ulps of 0.25 likewise.
+        let ulps = |x: f32| 4.0 * f32::EPSILON * x.abs();
+        assert!((h.t - 2.0).abs() <= ulps(2.0), "{h:?}");
+        assert!((h.u - 0.25).abs() <= ulps(1.0) && (h.v - 0.25).abs() <= ulps(1.0), "{h:?}");
         assert!(h.ng.cross(Vec3::Z).length() < 1e-6 && h.ng.z.abs() > 0.0, "{h:?}");
         // Misses outside the triangle and beyond tfar.
         assert!(s.intersect(Vec3::new(0.8, 0.8, 2.0), Vec3::new(0.0, 0.0, -1.0), 0.0, f32::INFINITY).is_none());
@@ -328,6 +391,29 @@ mod tests {
         assert_eq!(g.rh.hit.prim_id, 0);
         assert_eq!(g.rh.hit.geom_id, 0);
         assert_eq!(g.guard, [0xDEAD_BEEF; 8]);
+    }
+
+    #[test]
+    fn device_configuration_selects_the_kernels() {
+        let sse = device_info_with("max_isa=sse4.2").expect("SSE4.2 device");
+        assert_eq!(sse.simd_width, 4, "{sse}");
+        assert_eq!(sse.config, "max_isa=sse4.2");
+        assert_eq!(sse.version / 100, 404, "Embree 4.4 expected: {sse}");
+        let native = device_info_with("").expect("native device");
+        #[cfg(target_arch = "x86_64")]
+        {
+            let expect = if std::arch::is_x86_feature_detected!("avx512f") {
+                16
+            } else if std::arch::is_x86_feature_detected!("avx") {
+                8
+            } else {
+                4
+            };
+            assert_eq!(native.simd_width, expect, "{native}");
+            if expect >= 8 {
+                assert_eq!(device_info_with("max_isa=avx2").unwrap().simd_width, 8);
+            }
+        }
     }
 
     #[test]
