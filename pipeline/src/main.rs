@@ -23,7 +23,7 @@ fn main() -> ExitCode {
     match execute(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let code = if e.chain().any(|c| c.downcast_ref::<ConfigError>().is_some()) { 2 } else { 1 };
+            let code = if e.chain().any(is_bad_config) { 2 } else { 1 };
             // Our error types print their causes in their own message, so the top level is the whole story.
             eprintln!("error: {}", one_line(&e.to_string()));
             ExitCode::from(code)
@@ -35,6 +35,8 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Run(args) => {
             let plan = pipeline::plan::Plan::load(&args.config, &args.set)?;
+            // Checked before any stage runs; the kernels in use decide how hits round (ARCHITECTURE.md).
+            eprintln!("embree: {}", tracer::embree::device_info()?);
             let opts = pipeline::runner::RunOptions { from: args.from, until: args.until };
             pipeline::runner::run(&plan, opts, &mut pipeline::stages::Stages)?;
             let materials = plan.output.join("materials.json");
@@ -49,6 +51,12 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
         Command::Export(args) => pipeline::stages::export::export_mesh(&args.run_dir).map(|_| ()).map_err(Into::into),
         Command::Bench(args) => pipeline::bench::run_command(args.what).map_err(Into::into),
     }
+}
+
+/// A bad config file, `--set` value or `IPT_EMBREE_CONFIG`: exit code 2.
+fn is_bad_config(e: &(dyn std::error::Error + 'static)) -> bool {
+    e.downcast_ref::<ConfigError>().is_some()
+        || matches!(e.downcast_ref::<tracer::embree::EmbreeError>(), Some(tracer::embree::EmbreeError::Config { .. }))
 }
 
 fn one_line(s: &str) -> String {
