@@ -4,8 +4,8 @@
 //! Issue 5 fact (1): with 4 value paths the L1 gradient at the truth was biased (t ≈ −80).
 
 use glam::Vec3;
-use pipeline::fit::object::loss_weight;
-use pipeline::fit::{AdamLoss, ObjectFitSettings, layout, pixels};
+use optim::fit::object::loss_weight;
+use optim::fit::{AdamLoss, ObjectFitSettings, layout, pixels};
 use std::path::Path;
 
 /// t-statistics (mean / standard error over `draws` seeds) of every base-colour gradient component at the

@@ -138,7 +138,7 @@ pub fn evidence(triangles: usize, samples: &[TriSample], fitted: &Fitted) -> Vec
 /// smallest p first (then largest F), within the budget.
 #[must_use]
 pub fn choose(inputs: &RoundInputs<'_>, state: &TriangleState, samples: &[TriSample], fitted: &Fitted) -> Vec<u32> {
-    let cfg = inputs.config;
+    let cfg = inputs.settings;
     let n = state.triangles.len();
     let ev = evidence(n, samples, fitted);
     // Pixel centres per (triangle, view); the best view is the one with the most.

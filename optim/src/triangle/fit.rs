@@ -301,7 +301,7 @@ pub fn fit_pass(
     round: u32,
     pass: u32,
 ) -> Result<Fitted, TriangleError> {
-    let cfg = inputs.config;
+    let cfg = inputs.settings;
     let n = state.triangles.len();
     // Emitting objects keep their per-object materials (emission and materials are entangled there); their
     // emission is re-solved between passes of ratio steps. Only objects that emit now may emit: the object
@@ -425,7 +425,7 @@ fn solve_light(
     pass: u32,
     work: &mut tracer::TraceStats,
 ) -> Result<Vec<DVec3>, TriangleError> {
-    let cfg = inputs.config;
+    let cfg = inputs.settings;
     let s = inputs.object;
     let objects = state.emission.len();
     if samples.is_empty() || emitters.is_empty() {
@@ -595,10 +595,11 @@ pub fn refine_light(
     samples: &[TriSample],
     state: &mut TriangleState,
     round: u32,
+    progress: &dyn crate::Progress,
 ) -> Result<Option<Fitted>, TriangleError> {
     let emits: Vec<bool> = state.emission.iter().map(|e| e.max_element() > 0.0).collect();
     let emitters: Vec<usize> = (0..emits.len()).filter(|&o| emits[o]).collect();
-    if emitters.is_empty() || inputs.config.fit_steps == 0 || LIGHT_STEPS == 0 {
+    if emitters.is_empty() || inputs.settings.fit_steps == 0 || LIGHT_STEPS == 0 {
         return Ok(None);
     }
     let free: Vec<bool> = state.face_object.iter().map(|&o| !emits[o as usize]).collect();
@@ -644,15 +645,19 @@ pub fn refine_light(
             if p > LIGHT_SIGNIFICANCE {
                 state.emission.clone_from(&start);
                 state.materials.clone_from(&kept_materials);
-                eprintln!(
-                    "[triangle] round {round}: light kept at {:?} (proposed {proposed:?}: p = {p:.3} > \
-                     {LIGHT_SIGNIFICANCE}, no significant change)",
-                    emitters.iter().map(|&o| start[o].to_array()).collect::<Vec<_>>()
-                );
+                let kept: Vec<[f32; 3]> = emitters.iter().map(|&o| start[o].to_array()).collect();
+                tracing::info!(round, p, ?kept, ?proposed, "triangle light kept");
+                progress.note(&format!(
+                    "[triangle] round {round}: light kept at {kept:?} (proposed {proposed:?}: p = {p:.3} > \
+                     {LIGHT_SIGNIFICANCE}, no significant change)"
+                ));
                 bound_discards(round, work.discarded, work.paths)?;
                 return Ok(None);
             }
-            eprintln!("[triangle] round {round}: light change significant (p = {p:.2e}), proposed {proposed:?}");
+            tracing::info!(round, p, ?proposed, "triangle light change significant");
+            progress.note(&format!(
+                "[triangle] round {round}: light change significant (p = {p:.2e}), proposed {proposed:?}"
+            ));
         }
         for (&o, e) in emitters.iter().zip(&mean_e) {
             state.emission[o] = e.as_vec3();
@@ -672,11 +677,12 @@ pub fn refine_light(
         fitted = Some(f);
     }
     let Some(mut fitted) = fitted else { return Ok(None) };
-    eprintln!(
-        "[triangle] round {round}: light {:?} → {:?} ({LIGHT_CYCLES} × {LIGHT_STEPS} joint steps)",
-        emitters.iter().map(|&o| start[o].to_array()).collect::<Vec<_>>(),
-        emitters.iter().map(|&o| state.emission[o].to_array()).collect::<Vec<_>>()
-    );
+    let from: Vec<[f32; 3]> = emitters.iter().map(|&o| start[o].to_array()).collect();
+    let to: Vec<[f32; 3]> = emitters.iter().map(|&o| state.emission[o].to_array()).collect();
+    tracing::info!(round, ?from, ?to, "triangle light re-solved");
+    progress.note(&format!(
+        "[triangle] round {round}: light {from:?} → {to:?} ({LIGHT_CYCLES} × {LIGHT_STEPS} joint steps)"
+    ));
     fitted.traced_paths += work.paths;
     fitted.discarded_samples += work.discarded;
     bound_discards(round, fitted.discarded_samples, fitted.traced_paths)?;
@@ -697,7 +703,7 @@ fn adam(
     round: u32,
     work: &mut tracer::TraceStats,
 ) -> Result<(), TriangleError> {
-    let cfg = inputs.config;
+    let cfg = inputs.settings;
     let s = inputs.object;
     let n = state.triangles.len();
     // 5 parameters per triangle: base colour RGB, roughness, metallic.

@@ -169,7 +169,7 @@ pub fn fit_objects(
     inputs: &FitInputs<'_>,
     resume: Option<FitState>,
     on_checkpoint: &mut dyn FnMut(&FitState) -> Result<(), FitError>,
-    progress: &indicatif::ProgressBar,
+    progress: &dyn crate::Progress,
 ) -> Result<FitOutcome, FitError> {
     validate(inputs)?;
     let s = inputs.settings;
@@ -249,7 +249,7 @@ pub fn fit_objects(
         if !state.params.iter().all(|v| v.is_finite()) {
             return Err(FitError::NonFinite { what: "parameter", iteration: it });
         }
-        progress.set_message(format!("loss {:.4}", rec.loss));
+        progress.set_message(&format!("loss {:.4}", rec.loss));
         tracing::debug!(
             iteration = it,
             phase = %rec.phase,

@@ -212,7 +212,6 @@ pub mod split;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
-use crate::config::TriangleConfig;
 use crate::fit::ObjectFitSettings;
 
 /// Format tag of `triangle/result.json`.
@@ -280,12 +279,43 @@ pub enum TriangleError {
     TooManyDiscarded { round: u32, discarded: u64, paths: u64 },
 }
 
+/// Settings of the per-triangle fit (the pipeline's `[triangle]` table, where each default is documented).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriangleSettings {
+    /// Subdivision rounds (fit → split → fit …); 0 = per-triangle fit on the given mesh only.
+    pub rounds: u32,
+    /// Closed-form (ratio) base-colour updates per fit.
+    pub fit_steps: u32,
+    /// Paths per pixel of the renders of every fit step and of the split test.
+    pub spp: u32,
+    /// Adam iterations per fit after the closed-form steps (batches of `object.batch_pixels` pixels,
+    /// `object.n_value`/`object.n_grad` paths, the object stage's loss); 0 = closed form only.
+    pub adam_iterations: u32,
+    /// Adam learning rate of those iterations.
+    pub adam_lr: f64,
+    /// Weight of the smoothness regulariser between neighbouring triangles of one object, in pixels of
+    /// evidence per shared edge (0 = none).
+    pub smoothness: f64,
+    /// Family-wise level of the split test: the probability that a round splits any triangle whose pixels
+    /// differ only by noise is at most this ([`split`]).
+    pub split_significance: f64,
+    /// A significant triangle is split only when some would-be child's albedo would change by more than this
+    /// fraction (largest mean residual of a child over the triangle's mean radiance).
+    pub split_contrast: f64,
+    /// Smallest pixel footprint of a triangle a split may create: pixel centres in its parent's best view / 4.
+    pub min_pixels: u32,
+    /// Budget: the mesh never grows beyond this many triangles.
+    pub max_triangles: u32,
+    /// Seed of the stage's renders.
+    pub seed: u64,
+}
+
 /// Everything the rounds read besides the state.
 #[derive(Debug, Clone, Copy)]
 pub struct RoundInputs<'a> {
     pub cameras: &'a [tracer::Camera],
     pub images: &'a [ingest::photo::LinearImage],
-    pub config: &'a TriangleConfig,
+    pub settings: &'a TriangleSettings,
     /// The object stage's settings (Adam batch, paths, loss) for the optional Adam iterations.
     pub object: &'a ObjectFitSettings,
     pub tracer: &'a tracer::TracerSettings,
@@ -355,7 +385,7 @@ impl TriangleState {
     }
 }
 
-fn check(config: &TriangleConfig) -> Result<(), TriangleError> {
+fn check(config: &TriangleSettings) -> Result<(), TriangleError> {
     let bad = |key: &'static str, message: &str| Err(TriangleError::Setting { key, message: message.into() });
     if config.spp == 0 {
         return bad("spp", "must be ≥ 1");
@@ -378,9 +408,9 @@ pub fn run_rounds(
     inputs: &RoundInputs<'_>,
     mut state: TriangleState,
     on_round: &mut dyn FnMut(&TriangleState) -> Result<(), TriangleError>,
-    progress: &indicatif::ProgressBar,
+    progress: &dyn crate::Progress,
 ) -> Result<TriangleState, TriangleError> {
-    check(inputs.config)?;
+    check(inputs.settings)?;
     if inputs.images.len() != inputs.cameras.len() {
         return Err(TriangleError::Input(format!(
             "{} images for {} cameras",
@@ -388,7 +418,7 @@ pub fn run_rounds(
             inputs.cameras.len()
         )));
     }
-    let cfg = inputs.config;
+    let cfg = inputs.settings;
     progress.set_length(u64::from(cfg.rounds) + 1);
     progress.set_position(u64::from(state.rounds_done));
     while state.rounds_done <= cfg.rounds {
@@ -408,7 +438,7 @@ pub fn run_rounds(
             seconds: 0.0,
             emission: state.emission.clone(),
         };
-        progress.set_message(format!("{} triangles, loss {:.4}", rec.triangles, fitted.loss.last().unwrap_or(&0.0)));
+        progress.set_message(&format!("{} triangles, loss {:.4}", rec.triangles, fitted.loss.last().unwrap_or(&0.0)));
         let last = round == cfg.rounds;
         let mut stop = last;
         let mut applied = false;
@@ -439,14 +469,14 @@ pub fn run_rounds(
             } else {
                 (scene, pix)
             };
-            if let Some(again) = fit::refine_light(inputs, &scene, &pix, &mut state, round)? {
+            if let Some(again) = fit::refine_light(inputs, &scene, &pix, &mut state, round, progress)? {
                 rec.loss.extend(again.loss);
             }
             rec.emission.clone_from(&state.emission);
         }
         rec.seconds = started.elapsed().as_secs_f64();
         tracing::info!(round, triangles = rec.triangles, marked = rec.marked, refined = rec.refined, "triangle round");
-        eprintln!(
+        progress.note(&format!(
             "[triangle] round {round}: {} triangles, loss {:.5}, {} marked, {} split, {} refused, {} closure cuts \
              ({:.1} s); emission of the emitters {:?}",
             rec.triangles,
@@ -457,7 +487,7 @@ pub fn run_rounds(
             rec.closure_cut,
             rec.seconds,
             rec.emission.iter().filter(|e| e.max_element() > 0.0).map(|e| e.to_array()).collect::<Vec<_>>()
-        );
+        ));
         state.log.push(rec);
         if stop {
             // Nothing changed the mesh after this fit: it is the final result.
