@@ -105,6 +105,7 @@ pub mod roughness;
 pub mod samples;
 pub mod select;
 pub mod settings;
+pub mod solve;
 
 pub use object::fit_objects;
 pub use settings::{AdamLoss, ObjectFitSettings};

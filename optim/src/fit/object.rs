@@ -2,35 +2,16 @@
 //! Gauss–Newton refinement, model selection. See the module docs of [`crate::fit`].
 
 use super::adam::{AdamConfig, AdamState};
-use super::emission_solve::{SolveOptions, Unknowns, solve_step};
+use super::emission_solve::{Unknowns, solve_step};
 use super::jacobian::Ctx;
 use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
-use super::linear::DataLoss;
-use super::pixels::{self, PixelSets, Sample, stream};
+use super::pixels::{self, Sample, stream};
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
+use super::solve::{MIN_PIXELS, keys, solve_options, solve_samples};
 use super::{FitError, FitInputs, FitOutcome, FitState, IterationRecord, ObjectFitSettings, select};
 use glam::Vec3;
 use tracer::PixelRef;
-
-/// Key spaces of the tracer's `iteration` argument, so that no two uses share random numbers.
-pub(crate) mod keys {
-    pub const SOLVE: u64 = 1 << 32;
-    pub const REFINE: u64 = 2 << 32;
-    pub const SELECT: u64 = 3 << 32;
-}
-
-/// An object is "seen" (its material constrained by the photos) when at least this many training pixel
-/// centres land on it: below that a handful of pixels would fix a whole material (issue 7 asks to report such
-/// unknowns as unconstrained instead).
-pub(crate) const MIN_PIXELS: usize = 16;
-
-/// IRLS rounds per linearised solve: the L1 solution of a 10–30 variable problem settles in well under 20.
-const IRLS_ITERS: usize = 20;
-
-/// Marquardt damping of the Gauss–Newton base-colour step (fraction of the diagonal): 0.1 keeps the first
-/// step from a grey start stable and costs little once near the solution.
-const GN_DAMPING: f64 = 0.1;
 
 fn validate(inputs: &FitInputs<'_>) -> Result<(), FitError> {
     let s = inputs.settings;
@@ -156,11 +137,6 @@ pub(crate) fn adam_iteration(
     let (lo, hi) = layout::bounds(k_count);
     adam.step(x, &grad, &lrs, &lo, &hi);
     Ok(loss)
-}
-
-/// Solve pixels of solve number `key`: `solve_pixels` training pixels drawn uniformly.
-pub(super) fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> Vec<Sample> {
-    pixels::draw(&sets.train, s.solve_pixels as usize, seed, stream::SOLVE_PIXELS, key)
 }
 
 /// Runs the fit; see [`crate::fit`]. `resume` continues a checkpointed run; `on_checkpoint` is called every
@@ -319,14 +295,4 @@ fn average_refinement(state: &FitState, s: &ObjectFitSettings) -> Vec<f64> {
         }
     }
     x
-}
-
-pub(crate) fn solve_options(s: &ObjectFitSettings, unknowns: Unknowns) -> SolveOptions {
-    SolveOptions {
-        unknowns,
-        loss: DataLoss::L1,
-        emission_l1: s.emission_l1,
-        damping: GN_DAMPING,
-        irls_iters: IRLS_ITERS,
-    }
 }

@@ -6,9 +6,9 @@ use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, idx};
 use super::linear;
-use super::object::{keys, solve_options, solve_samples};
 use super::pixels::{PixelSets, Sample};
 use super::roughness;
+use super::solve::{self, keys, solve_options, solve_samples};
 use super::{FitError, ObjectFitSettings, ObjectModel};
 use tracer::PixelRef;
 
@@ -339,7 +339,7 @@ pub fn choose_models(
                 reasons.insert(0, format!(
                     "material unconstrained: {seen} (fewer than {}); its base colour, roughness and specular are the \
                      start values, not estimates",
-                    super::object::MIN_PIXELS
+                    solve::MIN_PIXELS
                 ));
             }
             let model = match (glossy[k], emits[k]) {

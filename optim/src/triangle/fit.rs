@@ -13,9 +13,9 @@ use crate::fit::adam::{AdamConfig, AdamState};
 use crate::fit::emission_solve::{Columns, SolveOptions, Unknowns, solve_on_columns};
 use crate::fit::jacobian::Ctx;
 use crate::fit::linear::DataLoss;
-use crate::fit::object::solve_options;
 use crate::fit::pixels::uniform;
 use crate::fit::samples::SampleCounter;
+use crate::fit::solve::solve_options;
 
 /// A triangle's closed-form update uses only its interior pixels (footprint wholly on it) when it has at least
 /// this many: they depend on its own value alone. With fewer (small or grazing triangles) all its pixels are
