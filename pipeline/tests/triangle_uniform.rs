@@ -10,7 +10,7 @@
 mod common;
 
 use optim::triangle::TriangleSettings;
-use optim::triangle::{RoundInputs, fit, pixels, run_rounds, split};
+use optim::triangle::{RoundInputs, pixels, ratio, run_rounds, split};
 use pipeline::config::TriangleConfig;
 
 #[test]
@@ -76,7 +76,7 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     let mut state = out.clone();
     let scene = state.scene().unwrap();
     let pix = pixels::collect(&scene, &built.cameras, &images);
-    let fitted = fit::fit_round(&inputs, &scene, &pix, &mut state, config.rounds + 1).unwrap();
+    let fitted = ratio::fit_round(&inputs, &scene, &pix, &mut state, config.rounds + 1).unwrap();
     let ev = split::evidence(state.triangles.len(), &pix, &fitted);
     let p: Vec<f64> = ev.iter().zip(&fitted.free).filter(|(_, f)| **f).filter_map(|(e, _)| e.map(|e| e.p)).collect();
     let m = p.len() as f64;

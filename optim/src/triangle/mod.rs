@@ -10,7 +10,7 @@
 //! - **Pixels** ([`pixels`]): every valid pixel of every prepared view whose centre ray hits the mesh, with the
 //!   triangle and the would-be child (4-way split) its centre lies in, and whether the whole pixel footprint
 //!   (centre and 4 corners) lies inside that triangle ("interior").
-//! - **Fit** ([`fit`]): a closed-form multiplicative update per triangle. A diffuse triangle's radiance is
+//! - **Fit** ([`ratio`]): a closed-form multiplicative update per triangle. A diffuse triangle's radiance is
 //!   linear in its own base colour (a planar triangle does not light itself), so with the current value ρ,
 //!   the photo sum T and the rendered sum R over its pixels, ρ·T/R is the value that matches them; repeated
 //!   (`fit_steps`) it is a Jacobi iteration whose fixed point is T = R for every triangle, which also settles
@@ -19,15 +19,15 @@
 //!   triangle's pixels, pairs: triangles of one object sharing an edge, λ = `smoothness`) with Gauss–Seidel
 //!   sweeps: an unobserved triangle takes the mean of its neighbours, and a region nobody sees keeps the
 //!   object's value it started from. Emitting objects keep their per-object materials.
-//! - **Light** ([`fit::refine_light`], issue 7), once the mesh is final (the last round, or a round whose split
+//! - **Light** ([`light::refine_light`], issue 7), once the mesh is final (the last round, or a round whose split
 //!   test refined nothing): the object stage fitted the light with one colour per object, so on a textured
 //!   object (misspecified) its emission absorbs part of the misfit, and the ratio steps, which set each
 //!   triangle's value *given* the light, turn a light off by a factor into albedos off by its inverse (the
 //!   albedo/emission scale valley that only interreflection pins down). Re-solving the emission alone with
 //!   those albedos returns the same light (measured: light 6.5 % → 5–9 % off per channel, PSNR 33.1 dB); so,
 //!   as the object stage's joint step does, the light moves together with every non-emitting object's
-//!   albedo *scale* (ρ_t → s_o·ρ_t, texture shape fixed): [`fit::LIGHT_CYCLES`] (2) cycles of
-//!   [`fit::LIGHT_STEPS`] (6) Gauss–Newton steps on (e, s), averaged after the first [`fit::LIGHT_BURN_IN`]
+//!   albedo *scale* (ρ_t → s_o·ρ_t, texture shape fixed): [`light::LIGHT_CYCLES`] (2) cycles of
+//!   [`light::LIGHT_STEPS`] (6) Gauss–Newton steps on (e, s), averaged after the first [`light::LIGHT_BURN_IN`]
 //!   (2), then `fit_steps` ratio steps against the averaged light. Each
 //!   step is the object stage's solver on columns from the per-triangle scene
 //!   ([`crate::fit::emission_solve::solve_on_columns`]): ∂I/∂e_k and ∂I/∂s_o = Σ_(t ∈ o) ρ_t ∂I/∂ρ_t from the
@@ -38,7 +38,7 @@
 //!   Monte Carlo estimates — alternating the two walked the red light down by ~1 % per cycle; Marquardt
 //!   damping 1e-3 (0.1, the object stage's value, is relative to the IRLS-L1 weights; with L2 it held the
 //!   scales within 0.3 % of 1 per step and the light stayed 5 % off).
-//! - **Light-change gate** ([`fit::light_change_p`], [`fit::LIGHT_SIGNIFICANCE`] = 1 %): only what the
+//! - **Light-change gate** ([`light::light_change_p`], [`light::LIGHT_SIGNIFICANCE`] = 1 %): only what the
 //!   evidence calls for. After the first cycle's steps, the mean of its averaged steps is tested against the
 //!   object stage's light: per emitter and channel a Wald t = (x̄ − x₀)/(s/√n) with the steps' own scatter s
 //!   as the Monte Carlo standard error (relative variance pooled over the emitter's 3 channels: 3(n − 1) = 9
@@ -48,7 +48,7 @@
 //!   model is its per-object model, whose light the object stage already fitted jointly with its albedos).
 //!   Calibration (unit test, 4000 seeded trials of 4 Gaussian steps with 1.5 % scatter): 41 rejections under
 //!   the null (1.0 %), 4000 of 4000 for a light 6 % off.
-//! - **Shrinkage to the object** ([`fit::shrink_to_object`]), before the smoothness solve at every step: no
+//! - **Shrinkage to the object** ([`ratio::shrink_to_object`]), before the smoothness solve at every step: no
 //!   per-triangle parameter the evidence does not call for. Per object, its value m is the object-level ratio
 //!   update ΣT/Σ(R/ρ) over its triangles with clean evidence (≥ 4 interior pixels), accepted only when it
 //!   differs from the object's current value significantly (χ²(3) at 99.9 %, variance from the pixels'
@@ -57,7 +57,7 @@
 //!   m + τ²/(τ² + v_t)·(r_t − m), with τ² = max(0, mean[(r_t − m)² − v_t]) the object's spread beyond noise
 //!   (empirical Bayes / James–Stein): a uniform object (τ² ≈ 0) keeps its value on every triangle, a textured
 //!   one keeps its triangles' own values. Triangles seen in fewer than 4 interior pixels take m. Optionally
-//!   (`adam_iterations`) Adam follows with batches of pixels and the object stage's loss weights,
+//!   (`adam_iterations`, [`adam`]) Adam follows with batches of pixels and the object stage's loss weights,
 //!   `n_value`/`n_grad` paths, clamping, on base colour (and roughness/metallic of objects whose model has a
 //!   specular lobe).
 //! - **Split test** ([`split`], [`significance`]): after a fit the pixel residuals (photo − render, with the
@@ -204,8 +204,10 @@
 //!   them exactly; a checker not aligned with the dyadic grid needs deeper splits along its edges, which
 //!   `min_pixels` stops at the pixel footprint (not measured).
 
-pub mod fit;
+pub mod adam;
+pub mod light;
 pub mod pixels;
+pub mod ratio;
 pub mod significance;
 pub mod split;
 
@@ -426,7 +428,7 @@ pub fn run_rounds(
         let started = std::time::Instant::now();
         let scene = state.scene()?;
         let pix = pixels::collect(&scene, inputs.cameras, inputs.images);
-        let fitted = fit::fit_round(inputs, &scene, &pix, &mut state, round)?;
+        let fitted = ratio::fit_round(inputs, &scene, &pix, &mut state, round)?;
         let mut rec = RoundRecord {
             round,
             triangles: state.triangles.len(),
@@ -469,7 +471,7 @@ pub fn run_rounds(
             } else {
                 (scene, pix)
             };
-            if let Some(again) = fit::refine_light(inputs, &scene, &pix, &mut state, round, progress)? {
+            if let Some(again) = light::refine_light(inputs, &scene, &pix, &mut state, round, progress)? {
                 rec.loss.extend(again.loss);
             }
             rec.emission.clone_from(&state.emission);

@@ -4,8 +4,8 @@
 
 use glam::{DVec3, Vec3};
 
-use super::fit::Fitted;
 use super::pixels::TriSample;
+use super::ratio::Fitted;
 use super::significance::{f_survival, holm};
 use super::{RoundInputs, TriangleError, TriangleState};
 use crate::subdivide::{SplitLimits, SubdivideMesh, Subdivided, subdivide};
