@@ -5,11 +5,13 @@
 //!   pixels.
 //! - [`triangle`] — the per-triangle fit with adaptive subdivision, started from the per-object result.
 //! - [`subdivide`] — conforming adaptive subdivision of a triangle mesh (used by [`triangle`]).
+//! - [`streams`] — every random-number stream and key space the optimiser draws from.
 //! - [`progress`] — how progress and decisions leave the optimiser: the crate prints nothing; callers render
 //!   [`Progress`] calls and `tracing` events as they like.
 
 pub mod fit;
 pub mod progress;
+pub mod streams;
 pub mod subdivide;
 pub mod triangle;
 

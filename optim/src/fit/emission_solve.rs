@@ -15,8 +15,7 @@ use super::linear::{self, DataLoss, Problem};
 use super::pixels::Sample;
 use tracer::{PixelRef, TracerError};
 
-/// XORed into the iteration key for the second, independent Jacobian estimate.
-const SECOND_ESTIMATE: u64 = 1 << 31;
+use crate::streams::key::SECOND_ESTIMATE;
 
 /// Largest change of roughness or specular in one coupled Gauss–Newton step.
 const LOBE_TRUST_REGION: f64 = 0.1;

@@ -5,11 +5,12 @@ use super::adam::{AdamConfig, AdamState};
 use super::emission_solve::{Unknowns, solve_step};
 use super::jacobian::Ctx;
 use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
-use super::pixels::{self, Sample, stream};
+use super::pixels::{self, Sample};
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
-use super::solve::{MIN_PIXELS, keys, solve_options, solve_samples};
+use super::solve::{MIN_PIXELS, solve_options, solve_samples};
 use super::{FitError, FitInputs, FitOutcome, FitState, IterationRecord, ObjectFitSettings, select};
+use crate::streams::{draw, key};
 use glam::Vec3;
 use tracer::PixelRef;
 
@@ -111,7 +112,7 @@ pub(crate) fn adam_iteration(
     key: u64,
 ) -> Result<f64, FitError> {
     let k_count = x.len() / PER_OBJECT;
-    let batch = pixels::draw(train, s.batch_pixels as usize, ctx.seed, stream::BATCH, key);
+    let batch = pixels::draw(train, s.batch_pixels as usize, ctx.seed, draw::BATCH, key);
     let pix: Vec<PixelRef> = batch.iter().map(|b| b.pixel).collect();
     let params = layout::to_params(x);
     let values = ctx.render(&params, &pix, s.n_value, key)?;
@@ -174,8 +175,8 @@ pub fn fit_objects(
         None => {
             let mut x = layout::initial(k_count);
             let opts = solve_options(s, Unknowns::Emission);
-            let samples = solve_samples(&sets, s, s.seed, keys::SOLVE);
-            solve_step(&ctx, &mut x, &samples, s.solve_spp, keys::SOLVE, &free, &opts)?;
+            let samples = solve_samples(&sets, s, s.seed, key::SOLVE);
+            solve_step(&ctx, &mut x, &samples, s.solve_spp, key::SOLVE, &free, &opts)?;
             FitState {
                 iteration: 0,
                 adam: AdamState::new(x.len(), AdamConfig::default()),
@@ -202,7 +203,7 @@ pub fn fit_objects(
             let loss =
                 adam_iteration(&ctx, s, &sets.train, &mut state.params, &mut state.adam, &lr_mask, lr, u64::from(it))?;
             if s.emission_solve_every > 0 && it % s.emission_solve_every == 0 && it < s.iterations {
-                let key = keys::SOLVE + u64::from(it);
+                let key = key::SOLVE + u64::from(it);
                 let samples = solve_samples(&sets, s, s.seed, key);
                 solve_step(
                     &ctx,
@@ -216,7 +217,7 @@ pub fn fit_objects(
             }
             record(&state.params, it, "adam", loss, lr)
         } else {
-            let key = keys::REFINE + u64::from(it);
+            let key = key::REFINE + u64::from(it);
             let samples = solve_samples(&sets, s, s.seed, key);
             let opts = solve_options(s, Unknowns::EmissionAndBaseColor);
             let loss = solve_step(&ctx, &mut state.params, &samples, s.solve_spp, key, &free, &opts)?;

@@ -18,6 +18,7 @@ use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, ROUGHNESS, SPECULAR, idx};
 use super::linear::{self, DataLoss, Problem};
 use super::pixels::Sample;
+use crate::streams::key;
 use tracer::{PixelRef, TracerError};
 
 /// Coarse grid of the search: spans the domain with finer steps at low roughness, where the lobe changes
@@ -62,7 +63,7 @@ pub fn profile(
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
     let values = ctx.render(&params, &pixels, spp, key)?;
     // Independent random numbers for the Jacobian (the value and its slope must not share noise).
-    let rows = jacobian::channel_rows(ctx, &params, &pixels, spp, key ^ (1 << 30))?;
+    let rows = jacobian::channel_rows(ctx, &params, &pixels, spp, key ^ key::PROFILE_JACOBIAN)?;
     let m = samples.len();
     // Unknowns: ρ_r, ρ_g, ρ_b, s. Rows (pixel j, channel c) at 3j + c.
     let v0 = [x[idx(k, BASE_COLOR)], x[idx(k, BASE_COLOR + 1)], x[idx(k, BASE_COLOR + 2)], x[idx(k, SPECULAR)]];

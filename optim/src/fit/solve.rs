@@ -1,18 +1,11 @@
 //! The solve helpers shared by the per-object loop ([`super::object`]) and model selection
-//! ([`super::select`]): the options of the linearised solves, the pixels each solve draws, the key spaces of
-//! the tracer's random numbers, and the pixel count below which an object's material is unconstrained.
+//! ([`super::select`]): the options of the linearised solves, the pixels each solve draws, and the pixel count below which an object's material is unconstrained.
 
 use super::emission_solve::{SolveOptions, Unknowns};
 use super::linear::DataLoss;
-use super::pixels::{self, PixelSets, Sample, stream};
+use super::pixels::{self, PixelSets, Sample};
 use super::settings::ObjectFitSettings;
-
-/// Key spaces of the tracer's `iteration` argument, so that no two uses share random numbers.
-pub(crate) mod keys {
-    pub const SOLVE: u64 = 1 << 32;
-    pub const REFINE: u64 = 2 << 32;
-    pub const SELECT: u64 = 3 << 32;
-}
+use crate::streams::draw;
 
 /// An object is "seen" (its material constrained by the photos) when at least this many training pixel
 /// centres land on it: below that a handful of pixels would fix a whole material, so such an object is
@@ -38,5 +31,5 @@ pub(crate) fn solve_options(s: &ObjectFitSettings, unknowns: Unknowns) -> SolveO
 
 /// Solve pixels of solve number `key`: `solve_pixels` training pixels drawn uniformly.
 pub(crate) fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> Vec<Sample> {
-    pixels::draw(&sets.train, s.solve_pixels as usize, seed, stream::SOLVE_PIXELS, key)
+    pixels::draw(&sets.train, s.solve_pixels as usize, seed, draw::SOLVE_PIXELS, key)
 }

@@ -6,13 +6,9 @@ use glam::Vec3;
 use tracer::PixelRef;
 
 use super::pixels::TriSample;
-use super::ratio::render_key;
 use super::{RoundInputs, TriangleError, TriangleState};
 use crate::fit::adam::{AdamConfig, AdamState};
-use crate::fit::pixels::uniform;
-
-/// Stream of the Adam batch draws ([`uniform`]), apart from the object stage's streams 1–3.
-const STREAM_BATCH: u64 = 0x7269;
+use crate::streams::{draw, key, uniform};
 
 /// Layout of Adam's flat parameter vector: [`PER_TRIANGLE`] entries per triangle, triangle t's parameter p at
 /// [`idx`]`(t, p)`.
@@ -73,10 +69,10 @@ pub(super) fn adam(
     let b = s.batch_pixels.max(1) as usize;
     let lambda = cfg.smoothness / pool.len() as f64;
     for it in 0..cfg.adam_iterations {
-        let key = render_key(round, 1 << 16 | it);
+        let key = key::triangle(round, key::TRIANGLE_ADAM | it);
         let batch: Vec<&TriSample> = (0..b as u64)
             .map(|i| {
-                let u = uniform(cfg.seed, STREAM_BATCH, key, i);
+                let u = uniform(cfg.seed, draw::TRIANGLE_BATCH, key, i);
                 pool[((u * pool.len() as f64) as usize).min(pool.len() - 1)]
             })
             .collect();

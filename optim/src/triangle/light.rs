@@ -8,17 +8,14 @@ use rayon::prelude::*;
 use tracer::PixelRef;
 
 use super::pixels::TriSample;
-use super::ratio::{Fitted, bound_discards, fit_pass, render_key};
+use super::ratio::{Fitted, bound_discards, fit_pass};
 use super::{RoundInputs, TriangleError, TriangleState};
 use crate::fit::emission_solve::{Columns, SolveOptions, Unknowns, solve_on_columns};
 use crate::fit::jacobian::Ctx;
 use crate::fit::linear::DataLoss;
-use crate::fit::pixels::uniform;
 use crate::fit::samples::SampleCounter;
 use crate::fit::solve::solve_options;
-
-/// Stream of the emission solve's pixel draws ([`uniform`]), apart from the others.
-const STREAM_EMISSION_PIXELS: u64 = 0x7265;
+use crate::streams::{draw, key, uniform};
 
 /// Joint light/albedo-scale steps of [`refine_light`] after the final round's fit; the last half are
 /// averaged. Measured in the module docs of [`crate::triangle`].
@@ -41,12 +38,6 @@ pub const LIGHT_SIGNIFICANCE: f64 = 0.01;
 /// Marquardt damping of the albedo scales in [`solve_light`] (prox = damping · mean J², in the L2 data term's
 /// units). Measured in the module docs of [`crate::triangle`].
 const LIGHT_DAMPING: f64 = 1e-3;
-
-/// Step field of [`render_key`] for the emission solve of pass p (`EMISSION_KEY | p`), and the bit that keys
-/// its second, independent Jacobian estimate: above every ratio step (< 2^16 steps) and Adam key (2^16 | it,
-/// < 2^17 iterations), below the 2^20 of the round field.
-const EMISSION_KEY: u32 = 1 << 17;
-const EMISSION_SECOND_KEY: u64 = 1 << 18;
 
 /// One pixel's Jacobian entries in [`solve_light`]: per emitter ∂I/∂e_k, per scaled object ∂I/∂s_o (RGB).
 type LightRow = (Vec<[f64; 3]>, Vec<[f64; 3]>);
@@ -85,10 +76,10 @@ fn solve_light(
     if samples.is_empty() || emitters.is_empty() {
         return Ok(vec![DVec3::ONE; objects]);
     }
-    let key = render_key(round, EMISSION_KEY | pass);
+    let key = key::triangle(round, key::TRIANGLE_EMISSION | pass);
     let drawn: Vec<&TriSample> = (0..u64::from(s.solve_pixels.max(1)))
         .map(|i| {
-            let u = uniform(cfg.seed, STREAM_EMISSION_PIXELS, key, i);
+            let u = uniform(cfg.seed, draw::TRIANGLE_EMISSION_PIXELS, key, i);
             &samples[((u * samples.len() as f64) as usize).min(samples.len() - 1)]
         })
         .collect();
@@ -134,7 +125,7 @@ fn solve_light(
         (e, x)
     };
     let (je, jx) = columns(&rows(key)?);
-    let (je2, jx2) = columns(&rows(key | EMISSION_SECOND_KEY)?);
+    let (je2, jx2) = columns(&rows(key | key::TRIANGLE_EMISSION_SECOND)?);
     let mut e: Vec<[f64; 3]> = emitters.iter().map(|&o| state.emission[o].as_dvec3().to_array()).collect();
     let mut scale = vec![[1.0f64; 3]; scaled.len()];
     let mut top = vec![DVec3::ZERO; scaled.len()];
@@ -356,7 +347,7 @@ mod tests {
         let m = 4000;
         let mut rng = 0x1234_5678_9abc_def0u64;
         let mut noise = || {
-            rng = crate::fit::pixels::mix64(rng);
+            rng = crate::streams::mix64(rng);
             (rng >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
         };
         let (e_true, s_true) = (20.0, 0.95);
@@ -402,11 +393,11 @@ mod tests {
         }
     }
 
-    /// Standard normal draws (Box–Muller on the seeded [`crate::fit::pixels::mix64`] stream).
+    /// Standard normal draws (Box–Muller on the seeded [`crate::streams::mix64`] stream).
     fn normals(seed: u64, n: usize) -> Vec<f64> {
         let mut rng = seed;
         let mut u = || {
-            rng = crate::fit::pixels::mix64(rng);
+            rng = crate::streams::mix64(rng);
             ((rng >> 11) as f64 + 0.5) / (1u64 << 53) as f64
         };
         (0..n).map(|_| (-2.0 * u().ln()).sqrt() * (2.0 * std::f64::consts::PI * u()).cos()).collect()

@@ -11,6 +11,7 @@ use tracer::PixelRef;
 
 use super::pixels::TriSample;
 use super::{RoundInputs, TriangleError, TriangleState};
+use crate::streams::key;
 
 /// A triangle's closed-form update uses only its interior pixels (footprint wholly on it) when it has at least
 /// this many: they depend on its own value alone. With fewer (small or grazing triangles) all its pixels are
@@ -21,13 +22,6 @@ const MIN_INTERIOR: usize = 4;
 /// dominates); 64 sweeps carry a neighbour's value across ~8 unobserved triangles, beyond which a region keeps
 /// its starting (object) value — the intended fallback.
 const SMOOTH_SWEEPS: usize = 64;
-
-/// The key of the tracer's `iteration` argument for (round, step): distinct for every render of the stage
-/// and disjoint from the object stage's keys (< 4·2^32).
-#[must_use]
-pub fn render_key(round: u32, step: u32) -> u64 {
-    (16u64 << 32) | (u64::from(round) << 20) | u64::from(step)
-}
 
 /// What a round's fit leaves for the split test.
 #[derive(Debug, Clone, PartialEq)]
@@ -287,7 +281,7 @@ pub fn fit_pass(
             &pix,
             cfg.spp,
             cfg.seed,
-            render_key(round, k),
+            key::triangle(round, k),
         )?;
         work.add(&stats);
         let mut t_sum = vec![DVec3::ZERO; n];
@@ -414,14 +408,5 @@ mod tests {
             // τ² ≈ 0.09 ≫ v: shrink factor ≈ 1e-4/0.09, the values move by < 0.001.
             assert!((out[t].x - ratio[t].x).abs() < 1e-3, "{out:?}");
         }
-    }
-
-    #[test]
-    fn render_keys_are_distinct_per_round_and_step() {
-        let mut keys: Vec<u64> = (0..4).flat_map(|r| (0..8).map(move |s| render_key(r, s))).collect();
-        keys.sort_unstable();
-        keys.dedup();
-        assert_eq!(keys.len(), 32);
-        assert!(render_key(0, 0) > 4 << 32);
     }
 }

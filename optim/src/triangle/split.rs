@@ -232,7 +232,7 @@ pub fn apply(state: &mut TriangleState, marks: &[u32]) -> Result<Subdivided, Tri
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::pixels::uniform;
+    use crate::streams::uniform;
 
     /// Seeded standard normal numbers (Box–Muller on [`uniform`]), keyed by (stream, a, b).
     fn normal(stream: u64, a: u64, b: u64) -> f64 {

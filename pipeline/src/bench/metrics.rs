@@ -137,7 +137,7 @@ pub enum TextureError {
     NoPoints,
 }
 
-/// Samples `points` random points of `quad` (keyed by `seed` via [`optim::fit::pixels::uniform`], stream 1,
+/// Samples `points` random points of `quad` (keyed by `seed` via [`optim::streams::uniform`], stream 1,
 /// so the same seed gives the same points everywhere), finds the face among `faces` (indices into
 /// `triangles`, vertices in `positions`) that contains each, and compares that face's `albedo` (indexed by
 /// face) with the true checker colour there.
@@ -169,8 +169,8 @@ pub fn checker_albedo_error(
     }
     let (mut abs, mut sq) = (0.0f64, 0.0f64);
     for i in 0..points {
-        let s = optim::fit::pixels::uniform(seed, 1, i as u64, 0);
-        let t = optim::fit::pixels::uniform(seed, 1, i as u64, 1);
+        let s = optim::streams::uniform(seed, 1, i as u64, 0);
+        let t = optim::streams::uniform(seed, 1, i as u64, 1);
         let face = st_faces
             .iter()
             .find(|(_, st)| contains(*st, s, t))
