@@ -248,7 +248,7 @@ impl Default for TriangleConfig {
             adam_lr: 0.01,
             smoothness: 0.1,
             // At most 1 round in 100 splits a uniform scene by noise; the checker's texture (p-values 2e-9 and
-            // below, module docs of optim::triangle) passes it by orders of magnitude.
+            // below, docs/optim/design-measurements.md) passes it by orders of magnitude.
             split_significance: 0.01,
             split_contrast: 0.1,
             min_pixels: 4,

@@ -72,7 +72,7 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     // use). Under independent pixel noise each triangle's p (3 × its smallest per-channel p-value, Bonferroni)
     // satisfies P(p < x) ≤ x, so the count below 5 % is at most binomial(m, 0.05): bounded here at its mean + 4
     // standard deviations (a seeded run; exceeding it means the residuals carry structure the test mistakes
-    // for texture). Measured: see the module docs of optim::triangle.
+    // for texture). Measured: see docs/optim/design-measurements.md.
     let mut state = out.clone();
     let scene = state.scene().unwrap();
     let pix = pixels::collect(&scene, &built.cameras, &images);

@@ -4,7 +4,7 @@
 //!   materials `I_j = Σ_k J_jk e_k` exactly, with J from basis renders ([`super::jacobian`]); e ≥ 0 minimises
 //!   the (IRLS-)L1 data term plus the relative emission penalty `λ Σ_k s_k e_k`, where
 //!   s_k = mean_j |J_jk| is how strongly object k's emission moves the loss. A single λ then treats a visible
-//!   wall (s ≈ its share of the pixels) and a hidden light (s ≈ 1e-4 of that, issue 5 fact 2) alike.
+//!   wall (s ≈ its share of the pixels) and a hidden light (s ≈ 1e-4 of that) alike.
 //! - [`Unknowns::EmissionAndBaseColor`]: one Gauss–Newton step on emission and base colour jointly, with a
 //!   Levenberg–Marquardt proximal term on base colour. Moving both together is what crosses the
 //!   albedo/emission scale valley that alternating or joint first-order steps creep along.

@@ -1,4 +1,4 @@
-//! Roughness of one object by a 1-D search on its profile loss (issue 7).
+//! Roughness of one object by a 1-D search on its profile loss.
 //!
 //! For a fixed roughness r, an object's own pixels are (to first order, the light it sends back to itself
 //! through other surfaces aside) linear in its base colour and its specular strength: the diffuse lobe is
@@ -26,7 +26,7 @@ use tracer::{PixelRef, TracerError};
 pub const GRID: [f64; 7] = [0.04, 0.12, 0.22, 0.33, 0.45, 0.62, 0.85];
 /// Golden-section steps inside the bracket around the best grid point: the bracket (at most 0.4 wide) shrinks
 /// by 0.618 per step, to < 0.023 after 6 steps, so the chosen point is within ~0.012 of the bracket's
-/// minimum — well below the 0.05 tolerance issue 7 asks for.
+/// minimum — well below the required roughness tolerance of 0.05.
 pub const GOLDEN_STEPS: usize = 6;
 /// The golden-section refinement is skipped when the profile loss varies over the grid by less than this
 /// fraction of the mean |target| of the object's pixels: roughness then does not matter to the photos (a

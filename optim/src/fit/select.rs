@@ -1,4 +1,4 @@
-//! Model selection per object (issue 7): every object starts diffuse without emission and keeps an emission
+//! Model selection per object: every object starts diffuse without emission and keeps an emission
 //! term or gains a specular lobe only when that lowers the residual on held-out pixels significantly (a
 //! paired t-test over the held-out pixels, plus a minimum relative improvement).
 

@@ -18,7 +18,7 @@ use crate::fit::solve::solve_options;
 use crate::streams::{draw, key, uniform};
 
 /// Joint light/albedo-scale steps of [`refine_light`] after the final round's fit; the last half are
-/// averaged. Measured in the module docs of [`crate::triangle`].
+/// averaged. Measured in `docs/optim/design-measurements.md`.
 pub const LIGHT_STEPS: u32 = 6;
 
 /// Joint steps of each cycle of [`refine_light`] left out of its average: the first step crosses the valley
@@ -36,7 +36,7 @@ pub const LIGHT_CYCLES: u32 = 2;
 pub const LIGHT_SIGNIFICANCE: f64 = 0.01;
 
 /// Marquardt damping of the albedo scales in [`solve_light`] (prox = damping · mean J², in the L2 data term's
-/// units). Measured in the module docs of [`crate::triangle`].
+/// units). Measured in `docs/optim/design-measurements.md`.
 const LIGHT_DAMPING: f64 = 1e-3;
 
 /// One pixel's Jacobian entries in [`solve_light`]: per emitter ∂I/∂e_k, per scaled object ∂I/∂s_o (RGB).
@@ -141,7 +141,7 @@ fn solve_light(
     // L2, not the object stage's IRLS-L1: the ratio steps match sums (means) of photo and render, and an L1
     // fit matches medians, which differ for the skewed Monte Carlo pixel estimates; alternating two estimators
     // with different fixed points walks along the albedo/emission valley (measured: the red light −1 % per pass
-    // with L1, see the module docs).
+    // with L1, see `docs/optim/design-measurements.md`).
     // No emission penalty: the lasso only selects which objects emit, and that is the object stage's decision,
     // kept here (its weight is also scaled for the L1 data term: with L2 it zeroed whole channels of the light).
     let opts = SolveOptions {

@@ -90,7 +90,7 @@ pub fn smooth_solve(rho: &mut [Vec3], ratio: &[Vec3], weight: &[f64], nbrs: &[Ve
 }
 
 /// Shrink every triangle's estimate towards its object's pooled value ([`shrink_to_object`]) before the
-/// smoothness solve. Measured in the module docs of [`crate::triangle`].
+/// smoothness solve. Measured in `docs/optim/design-measurements.md`.
 const SHRINK: bool = true;
 
 /// 99.9 % quantile of χ² with 3 degrees of freedom (one per colour channel): the significance level of the
