@@ -3,7 +3,7 @@
 //!
 //! The scene: a 6 × 4-quad floor (segment 3, two objects' worth of random albedo), a wall strip sharing the
 //! floor's back edge (segment 8), and an emitting quad (segment 12, radiance above 1). Some floor triangles
-//! are refined with [`pipeline::subdivide`] (children inherit their parent's parameters, then get their own
+//! are refined with [`optim::subdivide`] (children inherit their parent's parameters, then get their own
 //! albedo, as the per-triangle stage will), so the export sees a conforming, subdivided mesh.
 //!
 //! Usage: `export_fixture OUT_DIR`
@@ -11,8 +11,8 @@
 use std::process::ExitCode;
 
 use glam::Vec3;
+use optim::subdivide::{SplitLimits, SubdivideMesh, subdivide};
 use pipeline::export::{self, ExportInput, ExportOptions};
-use pipeline::subdivide::{SplitLimits, SubdivideMesh, subdivide};
 use tracer::Material;
 
 /// SplitMix64: reproducible values without a rand dependency.

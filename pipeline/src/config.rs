@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use tracer::EmissionProfile;
 
-use crate::fit::ObjectFitSettings;
+use optim::fit::ObjectFitSettings;
 
 /// A configuration error. Its `Display` is always a single line that names the offending key where there
 /// is one; the binary prints it and exits with code 2.
@@ -199,7 +199,7 @@ impl Default for TracerConfig {
     }
 }
 
-/// `[triangle]`: the per-triangle stage (`crate::triangle`): per-triangle base colour starting from the
+/// `[triangle]`: the per-triangle stage (`optim::triangle`): per-triangle base colour starting from the
 /// per-object result, and adaptive subdivision rounds. Every default is documented in configs/README.md.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -248,7 +248,7 @@ impl Default for TriangleConfig {
             adam_lr: 0.01,
             smoothness: 0.1,
             // At most 1 round in 100 splits a uniform scene by noise; the checker's texture (p-values 2e-9 and
-            // below, module docs of crate::triangle) passes it by orders of magnitude.
+            // below, docs/optim/design-measurements.md) passes it by orders of magnitude.
             split_significance: 0.01,
             split_contrast: 0.1,
             min_pixels: 4,

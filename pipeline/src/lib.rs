@@ -3,22 +3,21 @@
 //!
 //! Code map: [`config`] (TOML as written, `--set`) → [`plan`] (validated, paths resolved, stage list) →
 //! [`runner`] (skip/rerun decisions, [`manifest`]s) → [`stages`] (the work) → [`materials`], [`report`].
-//! [`fit`] holds the per-object optimisation and [`synth`] the synthetic-scan generator.
+//! The optimisation itself is the `optim` crate ([`progress`] renders its progress); [`synth`] is the
+//! synthetic-scan generator.
 
 pub mod atomic_file;
 pub mod bench;
 pub mod cli;
 pub mod config;
 pub mod export;
-pub mod fit;
 pub mod manifest;
 pub mod materials;
 pub mod plan;
 pub mod presets;
+pub mod progress;
 pub mod render_cmd;
 pub mod report;
 pub mod runner;
 pub mod stages;
-pub mod subdivide;
 pub mod synth;
-pub mod triangle;

@@ -10,7 +10,7 @@ use serde::Serialize;
 use crate::config::{
     Config, ConfigError, ExportConfig, GroupBy, ImagesConfig, ScanFormat, TracerConfig, TriangleConfig,
 };
-use crate::fit::ObjectFitSettings;
+use optim::fit::ObjectFitSettings;
 
 /// The pipeline's stages, in execution order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]

@@ -2,7 +2,7 @@
 //! issue 5's acceptance numbers — albedo mean L1 ≤ 0.01 over non-emitting objects, the hidden light within
 //! 5 %, no other emitter above 1 % of it — and every wall and box diffuse.
 
-use pipeline::fit::ObjectFitSettings;
+use optim::fit::ObjectFitSettings;
 use std::path::Path;
 
 #[test]

@@ -4,10 +4,10 @@
 //!
 //! Measured (seed 0, 36 s): floor roughness 0.388, specular 0.750 (kept, t = 7.4); box roughness 0.254,
 //! specular 0.966 (kept, t = 4.2); every wall's best lobe made the held-out residual worse; light within
-//! 1.9 %. Other fit seeds: see the module docs of `pipeline::fit`.
+//! 1.9 %. Other fit seeds: see docs/optim/design-measurements.md.
 //! `FIT_GLOSSY_SEED=n` reruns it with another fit seed (a manual robustness check; the default is 0).
 
-use pipeline::fit::ObjectFitSettings;
+use optim::fit::ObjectFitSettings;
 use std::path::Path;
 
 #[test]

@@ -4,8 +4,8 @@
 //! Issue 5 fact (1): with 4 value paths the L1 gradient at the truth was biased (t ≈ −80).
 
 use glam::Vec3;
-use pipeline::fit::object::loss_weight;
-use pipeline::fit::{AdamLoss, ObjectFitSettings, layout, pixels};
+use optim::fit::object::loss_weight;
+use optim::fit::{AdamLoss, ObjectFitSettings, layout, pixels};
 use std::path::Path;
 
 /// t-statistics (mean / standard error over `draws` seeds) of every base-colour gradient component at the
@@ -19,7 +19,7 @@ fn gradient_t_stats(s: &ObjectFitSettings, draws: u64) -> Vec<f64> {
     let b = 256;
     let mut samples: Vec<Vec<f64>> = Vec::new();
     for d in 0..draws {
-        let batch = pixels::draw(&sets.train, b, 11, pixels::stream::BATCH, d);
+        let batch = pixels::draw(&sets.train, b, 11, optim::streams::draw::BATCH, d);
         let pix: Vec<_> = batch.iter().map(|x| x.pixel).collect();
         let v =
             tracer::render_pixels(&built.scene, &built.params, &built.cameras, &pix, s.n_value, &built.settings, 11, d)

@@ -1,6 +1,6 @@
 //! Recovery of the small synthetic room: albedo, the hidden light, no spurious emitters, model decisions.
 
-use pipeline::fit::ObjectFitSettings;
+use optim::fit::ObjectFitSettings;
 use std::path::Path;
 
 fn small() -> pipeline::synth::BuiltScene {

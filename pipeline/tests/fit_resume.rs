@@ -3,7 +3,7 @@
 
 mod common;
 
-use pipeline::fit::{FitError, FitOutcome, FitState, ObjectFitSettings};
+use optim::fit::{FitError, FitOutcome, FitState, ObjectFitSettings};
 
 fn run(
     built: &pipeline::synth::BuiltScene,

@@ -62,7 +62,7 @@ fn set_overrides_win_over_the_preset_and_can_choose_it() {
 fn without_a_preset_the_defaults_hold() {
     let c = p("[scan]\npath = \"s\"\n", &[]).unwrap();
     assert_eq!(c.quality, None);
-    assert_eq!(c.object, pipeline::fit::ObjectFitSettings::default());
+    assert_eq!(c.object, optim::fit::ObjectFitSettings::default());
 }
 
 #[test]

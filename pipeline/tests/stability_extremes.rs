@@ -9,7 +9,7 @@
 //! The rooms are small (24×18 or 32×24 pixels, photos at 256 paths) so that each test stays well under a
 //! minute in the debug build; tolerances are set from that noise level.
 
-use pipeline::fit::{FitOutcome, ObjectFitSettings};
+use optim::fit::{FitOutcome, ObjectFitSettings};
 use pipeline::synth::BuiltScene;
 
 /// The 3 m × 2.5 m × 2.2 m room of data-fixtures/scenes/small.toml, every coordinate shifted by `off`, with

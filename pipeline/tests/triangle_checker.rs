@@ -82,7 +82,7 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     assert!(psnr >= 40.0, "PSNR {psnr:.2} dB");
 
     // The light of the per-triangle result (re-solved with the per-triangle materials, module docs of
-    // pipeline::triangle): within 3 % per channel of the truth, where the per-object stage's light, fitted with
+    // optim::triangle): within 3 % per channel of the truth, where the per-object stage's light, fitted with
     // one colour for the whole checker floor, is 6.5 % off at the bench's default point (here: 2.6 %, 19.83,
     // 17.53, 14.84; the light-change gate finds that significant, p = 9.4e-6). Measured: 20.45, 18.32, 15.08,
     // max 2.2 %. No other

@@ -7,8 +7,9 @@
 
 mod common;
 
+use optim::triangle::TriangleSettings;
+use optim::triangle::{RoundInputs, TriangleError, TriangleState, run_rounds};
 use pipeline::config::TriangleConfig;
-use pipeline::triangle::{RoundInputs, TriangleError, TriangleState, run_rounds};
 
 #[test]
 fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends() {
@@ -21,17 +22,17 @@ fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends()
         *e *= 0.92;
     }
     let config = TriangleConfig { rounds: 2, fit_steps: 2, spp: 8, ..TriangleConfig::default() };
-    let object = pipeline::fit::ObjectFitSettings::default();
+    let object = optim::fit::ObjectFitSettings::default();
     let specular = vec![false; k];
     let inputs = RoundInputs {
         cameras: &built.cameras,
         images: &images,
-        config: &config,
+        settings: &TriangleSettings::from(&config),
         object: &object,
         tracer: &built.settings,
         specular: &specular,
     };
-    let bar = indicatif::ProgressBar::hidden();
+    let bar = optim::NoProgress;
     let mut checkpoints: Vec<TriangleState> = Vec::new();
     let mut keep = |s: &TriangleState| -> Result<(), TriangleError> {
         checkpoints.push(s.clone());

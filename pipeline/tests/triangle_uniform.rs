@@ -9,8 +9,9 @@
 
 mod common;
 
+use optim::triangle::TriangleSettings;
+use optim::triangle::{RoundInputs, pixels, ratio, run_rounds, split};
 use pipeline::config::TriangleConfig;
-use pipeline::triangle::{RoundInputs, fit, pixels, run_rounds, split};
 
 #[test]
 fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
@@ -19,17 +20,17 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     let k = built.desc.objects.len();
     let start = pipeline::synth::true_triangle_start(&built).unwrap();
     let config = TriangleConfig::default();
-    let object = pipeline::fit::ObjectFitSettings::default();
+    let object = optim::fit::ObjectFitSettings::default();
     let specular = vec![false; k];
     let inputs = RoundInputs {
         cameras: &built.cameras,
         images: &images,
-        config: &config,
+        settings: &TriangleSettings::from(&config),
         object: &object,
         tracer: &built.settings,
         specular: &specular,
     };
-    let bar = indicatif::ProgressBar::hidden();
+    let bar = optim::NoProgress;
     let out = run_rounds(&inputs, start.clone(), &mut |_| Ok(()), &bar).unwrap();
 
     // (1) No split: every round marked nothing, the mesh is the scan's.
@@ -71,11 +72,11 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     // use). Under independent pixel noise each triangle's p (3 × its smallest per-channel p-value, Bonferroni)
     // satisfies P(p < x) ≤ x, so the count below 5 % is at most binomial(m, 0.05): bounded here at its mean + 4
     // standard deviations (a seeded run; exceeding it means the residuals carry structure the test mistakes
-    // for texture). Measured: see the module docs of pipeline::triangle.
+    // for texture). Measured: see docs/optim/design-measurements.md.
     let mut state = out.clone();
     let scene = state.scene().unwrap();
     let pix = pixels::collect(&scene, &built.cameras, &images);
-    let fitted = fit::fit_round(&inputs, &scene, &pix, &mut state, config.rounds + 1).unwrap();
+    let fitted = ratio::fit_round(&inputs, &scene, &pix, &mut state, config.rounds + 1).unwrap();
     let ev = split::evidence(state.triangles.len(), &pix, &fitted);
     let p: Vec<f64> = ev.iter().zip(&fitted.free).filter(|(_, f)| **f).filter_map(|(e, _)| e.map(|e| e.p)).collect();
     let m = p.len() as f64;

@@ -65,7 +65,7 @@ pub fn run(opts: &AblationOptions) -> Result<Vec<Curve>, BenchError> {
     let mut curves = Vec::new();
     for (experiment, n_value, n_grad) in runs {
         let setup = FitSetup {
-            object: crate::fit::ObjectFitSettings { n_value, n_grad, ..base.object.clone() },
+            object: optim::fit::ObjectFitSettings { n_value, n_grad, ..base.object.clone() },
             ..base.clone()
         };
         let fit = super::timed_fit(&scene, &train, &setup)?;

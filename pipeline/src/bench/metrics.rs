@@ -137,7 +137,7 @@ pub enum TextureError {
     NoPoints,
 }
 
-/// Samples `points` random points of `quad` (keyed by `seed` via [`crate::fit::pixels::uniform`], stream 1,
+/// Samples `points` random points of `quad` (keyed by `seed` via [`optim::streams::uniform`], stream 1,
 /// so the same seed gives the same points everywhere), finds the face among `faces` (indices into
 /// `triangles`, vertices in `positions`) that contains each, and compares that face's `albedo` (indexed by
 /// face) with the true checker colour there.
@@ -169,8 +169,8 @@ pub fn checker_albedo_error(
     }
     let (mut abs, mut sq) = (0.0f64, 0.0f64);
     for i in 0..points {
-        let s = crate::fit::pixels::uniform(seed, 1, i as u64, 0);
-        let t = crate::fit::pixels::uniform(seed, 1, i as u64, 1);
+        let s = optim::streams::uniform(seed, 1, i as u64, 0);
+        let t = optim::streams::uniform(seed, 1, i as u64, 1);
         let face = st_faces
             .iter()
             .find(|(_, st)| contains(*st, s, t))
@@ -199,7 +199,7 @@ pub const TEXTURE_POINTS: usize = 2000;
 /// error. `None` when the scene has no checker object.
 pub fn triangle_texture_error(
     built: &BuiltScene,
-    state: &crate::triangle::TriangleState,
+    state: &optim::triangle::TriangleState,
 ) -> Result<Option<TextureAccuracy>, TextureError> {
     let albedo: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
     let mut per_object = Vec::new();

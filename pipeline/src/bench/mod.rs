@@ -26,7 +26,7 @@ pub mod tradeoff;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::fit::{FitInputs, FitOutcome, ObjectFitSettings};
+use optim::fit::{FitInputs, FitOutcome, ObjectFitSettings};
 use scenes::BenchScene;
 
 /// Why a benchmark failed.
@@ -35,11 +35,11 @@ pub enum BenchError {
     #[error("bench: {0}")]
     Synth(#[from] crate::synth::SynthError),
     #[error("bench: {0}")]
-    Fit(#[from] crate::fit::FitError),
+    Fit(#[from] optim::fit::FitError),
     #[error("bench: {0}")]
     Tracer(#[from] tracer::TracerError),
     #[error("bench: {0}")]
-    Triangle(#[from] crate::triangle::TriangleError),
+    Triangle(#[from] optim::triangle::TriangleError),
     #[error("bench: {0}")]
     Texture(#[from] metrics::TextureError),
     #[error("bench: {path}: {message}", path = .path.display())]
@@ -80,7 +80,7 @@ pub fn timed_fit(scene: &BenchScene, train_views: &[usize], setup: &FitSetup) ->
 #[derive(Debug, Clone)]
 pub struct TimedTriangle {
     /// The subdivided mesh with per-triangle materials.
-    pub state: crate::triangle::TriangleState,
+    pub state: optim::triangle::TriangleState,
     /// Wall time of the stage alone.
     pub seconds: f64,
 }
@@ -102,7 +102,7 @@ pub struct TimedPoint {
 }
 
 /// Runs the per-object fit of `scene` on the views `train_views` with `setup` and then, when `triangle` is
-/// given, the per-triangle stage (adaptive subdivision + per-triangle fit, [`crate::triangle::run_rounds`],
+/// given, the per-triangle stage (adaptive subdivision + per-triangle fit, [`optim::triangle::run_rounds`],
 /// what the `triangle` stage runs) from its result on the scan mesh, on the same (downscaled) views. Timed
 /// (wall and CPU), counting the work the tracer did meanwhile.
 pub fn timed_point(
@@ -136,7 +136,7 @@ pub fn timed_point(
     let cpu_before = process_clock::cpu_time_s().unwrap_or(f64::NAN);
     let before = tracer::total_trace_stats();
     let t = Instant::now();
-    let outcome = crate::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &indicatif::ProgressBar::hidden())?;
+    let outcome = optim::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &crate::progress::Bar::hidden())?;
     let fit_seconds = t.elapsed().as_secs_f64();
     let after_fit = tracer::total_trace_stats();
     let fit = TimedFit {
@@ -150,7 +150,7 @@ pub fn timed_point(
         Some(config) => {
             let t_tri = Instant::now();
             let m = &scene.built.mesh;
-            let start = crate::triangle::TriangleState::from_objects(
+            let start = optim::triangle::TriangleState::from_objects(
                 m.positions.clone(),
                 Some(m.normals.clone()),
                 m.triangles.clone(),
@@ -158,16 +158,16 @@ pub fn timed_point(
                 &fit.outcome.params,
             )?;
             let specular: Vec<bool> = fit.outcome.per_object.iter().map(|o| o.model.contains("specular")).collect();
-            let round_inputs = crate::triangle::RoundInputs {
+            let round_inputs = optim::triangle::RoundInputs {
                 cameras: &cameras,
                 images: &images,
-                config,
+                settings: &optim::triangle::TriangleSettings::from(config),
                 object: &setup.object,
                 tracer: &tracer_settings,
                 specular: &specular,
             };
             let state =
-                crate::triangle::run_rounds(&round_inputs, start, &mut |_| Ok(()), &indicatif::ProgressBar::hidden())?;
+                optim::triangle::run_rounds(&round_inputs, start, &mut |_| Ok(()), &crate::progress::Bar::hidden())?;
             Some(TimedTriangle { state, seconds: t_tri.elapsed().as_secs_f64() })
         }
     };

@@ -16,7 +16,7 @@ use super::scenes::{self, BenchScene};
 use super::svg::{self, Panel, Series};
 use super::{BenchError, FitSetup};
 use crate::config::TriangleConfig;
-use crate::fit::ObjectFitSettings;
+use optim::fit::ObjectFitSettings;
 
 /// Paths per pixel of the re-renders of the held-back views: their own noise (relative L1 ≈ 1–2 % on the
 /// demo's 96×72 views, measured by rendering the truth the same way) is the floor of that column.

@@ -37,11 +37,11 @@ pub enum StageError {
     #[error("tracer: {0}")]
     Tracer(#[from] tracer::TracerError),
     #[error(transparent)]
-    Fit(#[from] crate::fit::FitError),
+    Fit(#[from] optim::fit::FitError),
     #[error(transparent)]
     Materials(#[from] crate::materials::MaterialsError),
     #[error(transparent)]
-    Triangle(crate::triangle::TriangleError),
+    Triangle(optim::triangle::TriangleError),
     #[error(transparent)]
     Export(#[from] crate::export::ExportError),
 }

@@ -1,4 +1,4 @@
-//! The `object` stage: per-object material and emission fit ([`crate::fit::fit_objects`]) on the ingested
+//! The `object` stage: per-object material and emission fit ([`optim::fit::fit_objects`]) on the ingested
 //! mesh and the prepared photos, with checkpoints so an interrupted run resumes where it stopped.
 //!
 //! Artefacts in `output.path/object/`:
@@ -20,9 +20,9 @@ use super::object_result::{CHECKPOINT_FORMAT, HISTORY_FILE, HISTORY_FORMAT, Hist
 use super::preprocess::Prepared;
 use crate::atomic_file::write_json_atomic;
 use crate::config::profile_name;
-use crate::fit::{FitError, FitInputs, FitState, ObjectDesc};
 use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
 use crate::runner::StageContext;
+use optim::fit::{FitError, FitInputs, FitState, ObjectDesc};
 
 /// The checkpointed fit state of `dir` if it belongs to this exact computation (same config and inputs hashes).
 #[must_use]
@@ -68,7 +68,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         indicatif::ProgressStyle::with_template("[object] {bar:40} {pos}/{len} {msg} ({elapsed}, eta {eta})")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let outcome = crate::fit::fit_objects(&inputs, resume, &mut on_checkpoint, &bar)?;
+    let outcome = optim::fit::fit_objects(&inputs, resume, &mut on_checkpoint, &crate::progress::Bar(bar.clone()))?;
     bar.finish_and_clear();
 
     let materials = MaterialsFile {

@@ -1,4 +1,4 @@
-//! The `triangle` stage: per-triangle fit with adaptive subdivision ([`crate::triangle`]) starting from the
+//! The `triangle` stage: per-triangle fit with adaptive subdivision ([`optim::triangle`]) starting from the
 //! `object` stage's result.
 //!
 //! Artefacts in `output.path/triangle/`:
@@ -11,6 +11,7 @@
 
 use std::path::{Path, PathBuf};
 
+use optim::triangle::{RESULT_FORMAT, RoundInputs, TriangleError, TriangleSettings, TriangleState};
 use serde::{Deserialize, Serialize};
 
 use super::checkpoint;
@@ -19,8 +20,9 @@ use super::object_result::{MATERIALS_FILE, read_result as read_object_result};
 use super::preprocess::Prepared;
 use super::{StageError, remove_if_present};
 use crate::atomic_file::write_json_atomic;
+use crate::config::TriangleConfig;
+use crate::progress::Bar;
 use crate::runner::StageContext;
-use crate::triangle::{RESULT_FORMAT, RoundInputs, TriangleError, TriangleState};
 
 /// The result's file name.
 pub const RESULT_FILE: &str = "result.json";
@@ -74,10 +76,11 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         ids.iter().map(|id| materials.objects.iter().any(|o| o.id == *id && o.model.contains("specular"))).collect();
     let cameras = prepared.tracer_cameras();
     let settings = plan.tracer.settings();
+    let triangle = TriangleSettings::from(&plan.triangle);
     let inputs = RoundInputs {
         cameras: &cameras,
         images: &prepared.images,
-        config: &plan.triangle,
+        settings: &triangle,
         object: &plan.object,
         tracer: &settings,
         specular: &specular,
@@ -105,12 +108,31 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         indicatif::ProgressStyle::with_template("[triangle] {bar:40} round {pos}/{len} {msg} ({elapsed})")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let state = crate::triangle::run_rounds(&inputs, state, &mut on_round, &bar).map_err(triangle_err)?;
+    let state = optim::triangle::run_rounds(&inputs, state, &mut on_round, &Bar(bar.clone())).map_err(triangle_err)?;
     bar.finish_and_clear();
     write_json_atomic(&ctx.dir.join(RESULT_FILE), &ResultFile { format: RESULT_FORMAT.into(), state: state.clone() })?;
     checkpoint::remove(&ctx.dir)?;
     eprintln!("[triangle] {before} → {} triangles", state.triangles.len());
     Ok(vec![PathBuf::from("triangle").join(RESULT_FILE)])
+}
+
+impl From<&TriangleConfig> for TriangleSettings {
+    /// The optimiser's settings from the `[triangle]` table (`enabled` is the stage's own).
+    fn from(c: &TriangleConfig) -> Self {
+        Self {
+            rounds: c.rounds,
+            fit_steps: c.fit_steps,
+            spp: c.spp,
+            adam_iterations: c.adam_iterations,
+            adam_lr: c.adam_lr,
+            smoothness: c.smoothness,
+            split_significance: c.split_significance,
+            split_contrast: c.split_contrast,
+            min_pixels: c.min_pixels,
+            max_triangles: c.max_triangles,
+            seed: c.seed,
+        }
+    }
 }
 
 fn triangle_err(e: TriangleError) -> StageError {

@@ -295,13 +295,13 @@ pub fn photos(built: &BuiltScene) -> Result<Vec<ingest::photo::LinearImage>, Syn
 
 /// The objects of a built scene in the fit's form (object i = description object i).
 #[must_use]
-pub fn fit_objects(built: &BuiltScene) -> Vec<crate::fit::ObjectDesc> {
+pub fn fit_objects(built: &BuiltScene) -> Vec<optim::fit::ObjectDesc> {
     built
         .desc
         .objects
         .iter()
         .enumerate()
-        .map(|(i, o)| crate::fit::ObjectDesc {
+        .map(|(i, o)| optim::fit::ObjectDesc {
             id: i64::from(o.id),
             label: o.label.clone(),
             triangles: (0..built.mesh.object_of_tri.len() as u32)
@@ -316,8 +316,8 @@ pub fn fit_objects(built: &BuiltScene) -> Vec<crate::fit::ObjectDesc> {
 pub fn fit(
     built: &BuiltScene,
     images: &[ingest::photo::LinearImage],
-    settings: &crate::fit::ObjectFitSettings,
-) -> Result<crate::fit::FitOutcome, crate::fit::FitError> {
+    settings: &optim::fit::ObjectFitSettings,
+) -> Result<optim::fit::FitOutcome, optim::fit::FitError> {
     fit_resumable(built, images, settings, None, &mut |_| Ok(()))
 }
 
@@ -326,12 +326,12 @@ pub fn fit(
 pub fn fit_resumable(
     built: &BuiltScene,
     images: &[ingest::photo::LinearImage],
-    settings: &crate::fit::ObjectFitSettings,
-    resume: Option<crate::fit::FitState>,
-    on_checkpoint: &mut dyn FnMut(&crate::fit::FitState) -> Result<(), crate::fit::FitError>,
-) -> Result<crate::fit::FitOutcome, crate::fit::FitError> {
+    settings: &optim::fit::ObjectFitSettings,
+    resume: Option<optim::fit::FitState>,
+    on_checkpoint: &mut dyn FnMut(&optim::fit::FitState) -> Result<(), optim::fit::FitError>,
+) -> Result<optim::fit::FitOutcome, optim::fit::FitError> {
     let objects = fit_objects(built);
-    let inputs = crate::fit::FitInputs {
+    let inputs = optim::fit::FitInputs {
         scene: &built.scene,
         cameras: &built.cameras,
         images,
@@ -339,20 +339,20 @@ pub fn fit_resumable(
         settings,
         tracer: &built.settings,
     };
-    crate::fit::fit_objects(&inputs, resume, on_checkpoint, &indicatif::ProgressBar::hidden())
+    optim::fit::fit_objects(&inputs, resume, on_checkpoint, &crate::progress::Bar::hidden())
 }
 
 /// The per-triangle stage's start on a synthetic scene with its true per-object values (what the object stage
 /// recovers; checker objects at their mean colour): the common start of the tests of the per-triangle stage.
 pub fn true_triangle_start(
     built: &BuiltScene,
-) -> Result<crate::triangle::TriangleState, crate::triangle::TriangleError> {
+) -> Result<optim::triangle::TriangleState, optim::triangle::TriangleError> {
     let k = built.desc.objects.len();
     let params = tracer::Params {
         materials: built.params.materials[..k].to_vec(),
         emission: built.params.emission[..k].to_vec(),
     };
-    crate::triangle::TriangleState::from_objects(
+    optim::triangle::TriangleState::from_objects(
         built.mesh.positions.clone(),
         Some(built.mesh.normals.clone()),
         built.mesh.triangles.clone(),

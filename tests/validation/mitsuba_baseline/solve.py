@@ -2,7 +2,7 @@
 
 Same problem as `pipeline run` on the scan: the same images, the same unknowns (every object's diffuse
 reflectance and RGB emission), the same initialisation as our fit (albedo 0.5 grey, emission 0 —
-pipeline/src/fit/layout.rs `initial`), Adam, L1 loss on linear radiance. Mitsuba side: the `prb` integrator
+optim/src/fit/layout.rs `initial`), Adam, L1 loss on linear radiance. Mitsuba side: the `prb` integrator
 (path replay backpropagation) on llvm_ad_rgb, `mi.ad.Adam` with one learning rate for reflectances and one for
 radiances (they live on scales ~50× apart), reflectance clamped to [0, 1] and radiance to ≥ 0 after each step,
 a geometric learning-rate decay, and each iteration renders `views_per_iter` views (cycling through a seeded
@@ -37,7 +37,7 @@ from .scene import build_scene, load_scan, radiance_key, read_truth, reflectance
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 CSV_COLUMNS = ["wall_time_s", "iteration", "loss", "albedo_l1", "light_rel_err", "max_other_emission"]
-INITIAL_ALBEDO = 0.5  # our fit's initial base colour (pipeline/src/fit/layout.rs)
+INITIAL_ALBEDO = 0.5  # our fit's initial base colour (optim/src/fit/layout.rs)
 INITIAL_EMISSION = 0.0  # idem
 # Log-parameterised emission (Settings.emission_param = "log"): radiance = exp(x). Zero is not representable;
 # 1e-4 (image radiances here are ~0.1-1, so its contribution is below the photos' noise) stands for "off"

@@ -15,7 +15,7 @@ pub const SPECULAR: usize = 5;
 pub const EMISSION: usize = 6;
 
 /// Upper bound of emission in the optimiser's box. Emission is radiance in image units and has no natural
-/// upper limit; 1e6 only keeps a diverging run finite (HDR pixels of 1e5 are the largest issue 7 asks for).
+/// upper limit; 1e6 only keeps a diverging run finite (HDR pixels of 1e5 are the largest the fit must handle).
 pub const EMISSION_MAX: f64 = 1e6;
 
 /// Index of parameter `p` of object `k`.

@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 
 use glam::{DVec3, Vec3};
-use pipeline::subdivide::{SplitKind, SplitLimits, SubdivideError, SubdivideMesh, Subdivided, subdivide};
+use optim::subdivide::{SplitKind, SplitLimits, SubdivideError, SubdivideMesh, Subdivided, subdivide};
 
 /// SplitMix64: seeded, reproducible marks without a rand dependency.
 struct Rng(u64);

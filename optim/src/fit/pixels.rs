@@ -4,6 +4,8 @@
 use glam::{Vec2, Vec3};
 use tracer::PixelRef;
 
+use crate::streams::{draw, pixel_key, uniform};
+
 /// One training or held-out pixel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
@@ -11,36 +13,6 @@ pub struct Sample {
     pub target: Vec3,
     /// Object seen through the pixel centre, `None` when the ray leaves the scene.
     pub object: Option<u32>,
-}
-
-/// SplitMix64 (Steele et al. 2014): the fit's counter-based random numbers; a value depends only on its key.
-#[must_use]
-pub fn mix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
-
-/// A uniform number in [0, 1) keyed by (seed, stream, a, b).
-#[must_use]
-pub fn uniform(seed: u64, stream: u64, a: u64, b: u64) -> f64 {
-    let h = mix64(mix64(mix64(seed ^ mix64(stream)) ^ a) ^ b);
-    (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-}
-
-/// Stream ids of [`uniform`], one per use, so different uses never share numbers.
-pub mod stream {
-    pub const HOLDOUT: u64 = 1;
-    pub const BATCH: u64 = 2;
-    pub const SOLVE_PIXELS: u64 = 3;
-    pub const PROFILE: u64 = 4;
-}
-
-/// A pixel's key for [`uniform`]: view, row and column packed (20 bits each for rows and columns).
-#[must_use]
-pub fn pixel_key(p: PixelRef) -> u64 {
-    (u64::from(p.view) << 40) | (u64::from(p.y) << 20) | u64::from(p.x)
 }
 
 /// Training and held-out pixels.
@@ -70,7 +42,7 @@ pub fn collect(
             let pixel = PixelRef { view: view as u32, x, y };
             let s = Sample { pixel, target: t, object };
             let key = pixel_key(pixel);
-            if uniform(seed, stream::HOLDOUT, key, 0) < holdout_fraction {
+            if uniform(seed, draw::HOLDOUT, key, 0) < holdout_fraction {
                 sets.holdout.push(s);
             } else {
                 if let Some(k) = object

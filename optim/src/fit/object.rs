@@ -2,35 +2,17 @@
 //! Gauss–Newton refinement, model selection. See the module docs of [`crate::fit`].
 
 use super::adam::{AdamConfig, AdamState};
-use super::emission_solve::{SolveOptions, Unknowns, solve_step};
+use super::emission_solve::{Unknowns, solve_step};
 use super::jacobian::Ctx;
 use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
-use super::linear::DataLoss;
-use super::pixels::{self, PixelSets, Sample, stream};
+use super::pixels::{self, Sample};
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
+use super::solve::{MIN_PIXELS, solve_options, solve_samples};
 use super::{FitError, FitInputs, FitOutcome, FitState, IterationRecord, ObjectFitSettings, select};
+use crate::streams::{draw, key};
 use glam::Vec3;
 use tracer::PixelRef;
-
-/// Key spaces of the tracer's `iteration` argument, so that no two uses share random numbers.
-pub(crate) mod keys {
-    pub const SOLVE: u64 = 1 << 32;
-    pub const REFINE: u64 = 2 << 32;
-    pub const SELECT: u64 = 3 << 32;
-}
-
-/// An object is "seen" (its material constrained by the photos) when at least this many training pixel
-/// centres land on it: below that a handful of pixels would fix a whole material (issue 7 asks to report such
-/// unknowns as unconstrained instead).
-pub(crate) const MIN_PIXELS: usize = 16;
-
-/// IRLS rounds per linearised solve: the L1 solution of a 10–30 variable problem settles in well under 20.
-const IRLS_ITERS: usize = 20;
-
-/// Marquardt damping of the Gauss–Newton base-colour step (fraction of the diagonal): 0.1 keeps the first
-/// step from a grey start stable and costs little once near the solution.
-const GN_DAMPING: f64 = 0.1;
 
 fn validate(inputs: &FitInputs<'_>) -> Result<(), FitError> {
     let s = inputs.settings;
@@ -130,7 +112,7 @@ pub(crate) fn adam_iteration(
     key: u64,
 ) -> Result<f64, FitError> {
     let k_count = x.len() / PER_OBJECT;
-    let batch = pixels::draw(train, s.batch_pixels as usize, ctx.seed, stream::BATCH, key);
+    let batch = pixels::draw(train, s.batch_pixels as usize, ctx.seed, draw::BATCH, key);
     let pix: Vec<PixelRef> = batch.iter().map(|b| b.pixel).collect();
     let params = layout::to_params(x);
     let values = ctx.render(&params, &pix, s.n_value, key)?;
@@ -158,18 +140,13 @@ pub(crate) fn adam_iteration(
     Ok(loss)
 }
 
-/// Solve pixels of solve number `key`: `solve_pixels` training pixels drawn uniformly.
-pub(super) fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> Vec<Sample> {
-    pixels::draw(&sets.train, s.solve_pixels as usize, seed, stream::SOLVE_PIXELS, key)
-}
-
 /// Runs the fit; see [`crate::fit`]. `resume` continues a checkpointed run; `on_checkpoint` is called every
 /// `checkpoint_every` steps and at the end of each phase.
 pub fn fit_objects(
     inputs: &FitInputs<'_>,
     resume: Option<FitState>,
     on_checkpoint: &mut dyn FnMut(&FitState) -> Result<(), FitError>,
-    progress: &indicatif::ProgressBar,
+    progress: &dyn crate::Progress,
 ) -> Result<FitOutcome, FitError> {
     validate(inputs)?;
     let s = inputs.settings;
@@ -198,8 +175,8 @@ pub fn fit_objects(
         None => {
             let mut x = layout::initial(k_count);
             let opts = solve_options(s, Unknowns::Emission);
-            let samples = solve_samples(&sets, s, s.seed, keys::SOLVE);
-            solve_step(&ctx, &mut x, &samples, s.solve_spp, keys::SOLVE, &free, &opts)?;
+            let samples = solve_samples(&sets, s, s.seed, key::SOLVE);
+            solve_step(&ctx, &mut x, &samples, s.solve_spp, key::SOLVE, &free, &opts)?;
             FitState {
                 iteration: 0,
                 adam: AdamState::new(x.len(), AdamConfig::default()),
@@ -226,7 +203,7 @@ pub fn fit_objects(
             let loss =
                 adam_iteration(&ctx, s, &sets.train, &mut state.params, &mut state.adam, &lr_mask, lr, u64::from(it))?;
             if s.emission_solve_every > 0 && it % s.emission_solve_every == 0 && it < s.iterations {
-                let key = keys::SOLVE + u64::from(it);
+                let key = key::SOLVE + u64::from(it);
                 let samples = solve_samples(&sets, s, s.seed, key);
                 solve_step(
                     &ctx,
@@ -240,7 +217,7 @@ pub fn fit_objects(
             }
             record(&state.params, it, "adam", loss, lr)
         } else {
-            let key = keys::REFINE + u64::from(it);
+            let key = key::REFINE + u64::from(it);
             let samples = solve_samples(&sets, s, s.seed, key);
             let opts = solve_options(s, Unknowns::EmissionAndBaseColor);
             let loss = solve_step(&ctx, &mut state.params, &samples, s.solve_spp, key, &free, &opts)?;
@@ -249,7 +226,7 @@ pub fn fit_objects(
         if !state.params.iter().all(|v| v.is_finite()) {
             return Err(FitError::NonFinite { what: "parameter", iteration: it });
         }
-        progress.set_message(format!("loss {:.4}", rec.loss));
+        progress.set_message(&format!("loss {:.4}", rec.loss));
         tracing::debug!(
             iteration = it,
             phase = %rec.phase,
@@ -319,14 +296,4 @@ fn average_refinement(state: &FitState, s: &ObjectFitSettings) -> Vec<f64> {
         }
     }
     x
-}
-
-pub(crate) fn solve_options(s: &ObjectFitSettings, unknowns: Unknowns) -> SolveOptions {
-    SolveOptions {
-        unknowns,
-        loss: DataLoss::L1,
-        emission_l1: s.emission_l1,
-        damping: GN_DAMPING,
-        irls_iters: IRLS_ITERS,
-    }
 }

@@ -4,7 +4,7 @@
 //!   materials `I_j = Σ_k J_jk e_k` exactly, with J from basis renders ([`super::jacobian`]); e ≥ 0 minimises
 //!   the (IRLS-)L1 data term plus the relative emission penalty `λ Σ_k s_k e_k`, where
 //!   s_k = mean_j |J_jk| is how strongly object k's emission moves the loss. A single λ then treats a visible
-//!   wall (s ≈ its share of the pixels) and a hidden light (s ≈ 1e-4 of that, issue 5 fact 2) alike.
+//!   wall (s ≈ its share of the pixels) and a hidden light (s ≈ 1e-4 of that) alike.
 //! - [`Unknowns::EmissionAndBaseColor`]: one Gauss–Newton step on emission and base colour jointly, with a
 //!   Levenberg–Marquardt proximal term on base colour. Moving both together is what crosses the
 //!   albedo/emission scale valley that alternating or joint first-order steps creep along.
@@ -15,8 +15,7 @@ use super::linear::{self, DataLoss, Problem};
 use super::pixels::Sample;
 use tracer::{PixelRef, TracerError};
 
-/// XORed into the iteration key for the second, independent Jacobian estimate.
-const SECOND_ESTIMATE: u64 = 1 << 31;
+use crate::streams::key::SECOND_ESTIMATE;
 
 /// Largest change of roughness or specular in one coupled Gauss–Newton step.
 const LOBE_TRUST_REGION: f64 = 0.1;

@@ -1,4 +1,4 @@
-//! The path samples a fit traced and the ones the tracer discarded (issue 7): a sample whose estimate is
+//! The path samples a fit traced and the ones the tracer discarded: a sample whose estimate is
 //! not finite contributes nothing and is counted (`tracer::TraceStats::discarded`, see `tracer::batch`);
 //! the fit sums both counts over every tracer call, reports them and fails when too many were discarded.
 

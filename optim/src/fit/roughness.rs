@@ -1,4 +1,4 @@
-//! Roughness of one object by a 1-D search on its profile loss (issue 7).
+//! Roughness of one object by a 1-D search on its profile loss.
 //!
 //! For a fixed roughness r, an object's own pixels are (to first order, the light it sends back to itself
 //! through other surfaces aside) linear in its base colour and its specular strength: the diffuse lobe is
@@ -18,6 +18,7 @@ use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, ROUGHNESS, SPECULAR, idx};
 use super::linear::{self, DataLoss, Problem};
 use super::pixels::Sample;
+use crate::streams::key;
 use tracer::{PixelRef, TracerError};
 
 /// Coarse grid of the search: spans the domain with finer steps at low roughness, where the lobe changes
@@ -25,7 +26,7 @@ use tracer::{PixelRef, TracerError};
 pub const GRID: [f64; 7] = [0.04, 0.12, 0.22, 0.33, 0.45, 0.62, 0.85];
 /// Golden-section steps inside the bracket around the best grid point: the bracket (at most 0.4 wide) shrinks
 /// by 0.618 per step, to < 0.023 after 6 steps, so the chosen point is within ~0.012 of the bracket's
-/// minimum — well below the 0.05 tolerance issue 7 asks for.
+/// minimum — well below the required roughness tolerance of 0.05.
 pub const GOLDEN_STEPS: usize = 6;
 /// The golden-section refinement is skipped when the profile loss varies over the grid by less than this
 /// fraction of the mean |target| of the object's pixels: roughness then does not matter to the photos (a
@@ -62,7 +63,7 @@ pub fn profile(
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
     let values = ctx.render(&params, &pixels, spp, key)?;
     // Independent random numbers for the Jacobian (the value and its slope must not share noise).
-    let rows = jacobian::channel_rows(ctx, &params, &pixels, spp, key ^ (1 << 30))?;
+    let rows = jacobian::channel_rows(ctx, &params, &pixels, spp, key ^ key::PROFILE_JACOBIAN)?;
     let m = samples.len();
     // Unknowns: ρ_r, ρ_g, ρ_b, s. Rows (pixel j, channel c) at 3j + c.
     let v0 = [x[idx(k, BASE_COLOR)], x[idx(k, BASE_COLOR + 1)], x[idx(k, BASE_COLOR + 2)], x[idx(k, SPECULAR)]];

@@ -4,8 +4,8 @@
 
 use glam::{DVec3, Vec3};
 
-use super::fit::Fitted;
 use super::pixels::TriSample;
+use super::ratio::Fitted;
 use super::significance::{f_survival, holm};
 use super::{RoundInputs, TriangleError, TriangleState};
 use crate::subdivide::{SplitLimits, SubdivideMesh, Subdivided, subdivide};
@@ -138,7 +138,7 @@ pub fn evidence(triangles: usize, samples: &[TriSample], fitted: &Fitted) -> Vec
 /// smallest p first (then largest F), within the budget.
 #[must_use]
 pub fn choose(inputs: &RoundInputs<'_>, state: &TriangleState, samples: &[TriSample], fitted: &Fitted) -> Vec<u32> {
-    let cfg = inputs.config;
+    let cfg = inputs.settings;
     let n = state.triangles.len();
     let ev = evidence(n, samples, fitted);
     // Pixel centres per (triangle, view); the best view is the one with the most.
@@ -232,7 +232,7 @@ pub fn apply(state: &mut TriangleState, marks: &[u32]) -> Result<Subdivided, Tri
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::pixels::uniform;
+    use crate::streams::uniform;
 
     /// Seeded standard normal numbers (Box–Muller on [`uniform`]), keyed by (stream, a, b).
     fn normal(stream: u64, a: u64, b: u64) -> f64 {

@@ -1,4 +1,4 @@
-//! Model selection per object (issue 7): every object starts diffuse without emission and keeps an emission
+//! Model selection per object: every object starts diffuse without emission and keeps an emission
 //! term or gains a specular lobe only when that lowers the residual on held-out pixels significantly (a
 //! paired t-test over the held-out pixels, plus a minimum relative improvement).
 
@@ -6,10 +6,11 @@ use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, idx};
 use super::linear;
-use super::object::{keys, solve_options, solve_samples};
 use super::pixels::{PixelSets, Sample};
 use super::roughness;
+use super::solve::{self, solve_options, solve_samples};
 use super::{FitError, ObjectFitSettings, ObjectModel};
+use crate::streams::{self, draw, key};
 use tracer::PixelRef;
 
 /// A term is kept when the paired t-statistic of its held-out improvement exceeds 3 (one-sided p ≈ 0.1 %:
@@ -130,9 +131,7 @@ pub fn choose_models(
         // the test that decides whether to keep it (the lobe was not fitted on them, and a small glossy object
         // has too few held-out pixels alone: the box of the glossy fixture has ~60, and its highlight pixels
         // make the paired differences noisy).
-        let in_profile = |t: &Sample| {
-            super::pixels::uniform(ctx.seed, super::pixels::stream::PROFILE, super::pixels::pixel_key(t.pixel), 0) < 0.5
-        };
+        let in_profile = |t: &Sample| streams::uniform(ctx.seed, draw::PROFILE, streams::pixel_key(t.pixel), 0) < 0.5;
         let lobe_test: Vec<Sample> = test
             .iter()
             .copied()
@@ -149,25 +148,13 @@ pub fn choose_models(
             let samples = if own.len() <= PROFILE_PIXELS {
                 own
             } else {
-                super::pixels::draw(
-                    &own,
-                    PROFILE_PIXELS,
-                    ctx.seed,
-                    super::pixels::stream::SOLVE_PIXELS,
-                    keys::SELECT + k as u64,
-                )
+                super::pixels::draw(&own, PROFILE_PIXELS, ctx.seed, draw::SOLVE_PIXELS, key::SELECT + k as u64)
             };
             let mut base = x.clone();
             base[idx(k, SPECULAR)] = TRIAL_SPECULAR;
             base[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
-            let (best, evals) = roughness::search(
-                ctx,
-                &base,
-                k,
-                &samples,
-                (s.solve_spp / 2).max(1),
-                keys::SELECT + (4 << 20) + k as u64,
-            )?;
+            let (best, evals) =
+                roughness::search(ctx, &base, k, &samples, (s.solve_spp / 2).max(1), key::SELECT_ROUGHNESS + k as u64)?;
             tracing::debug!(object = k, ?best, evals = evals.len(), "roughness search");
             for c in 0..3 {
                 xt[idx(k, BASE_COLOR + c)] = best.base_color[c];
@@ -176,7 +163,7 @@ pub fn choose_models(
             xt[idx(k, SPECULAR)] = best.specular;
         }
         // Common random numbers for both renders: the paired differences then carry little path noise.
-        let key = keys::SELECT + (1 << 20);
+        let key = key::SELECT_LOBE_TEST;
         let lobe_pix: Vec<PixelRef> = lobe_test.iter().map(|t| t.pixel).collect();
         let render = |v: &[f64]| ctx.render(&layout::to_params(v), &lobe_pix, s.holdout_spp, key);
         let (i_d, i_t) = (render(&x)?, render(&xt)?);
@@ -224,7 +211,7 @@ pub fn choose_models(
             let steps = s.specular_trial_steps;
             let unknowns = if steps == 0 { Unknowns::Emission } else { Unknowns::EmissionAndBaseColor };
             let none = vec![false; k_count];
-            let run = AveragedSteps { unknowns, steps: steps.max(1), key: keys::SELECT + (2 << 20) };
+            let run = AveragedSteps { unknowns, steps: steps.max(1), key: key::SELECT_SPECULAR_STEPS };
             run.apply(ctx, s, sets, &mut x, free, &none)?;
         }
     }
@@ -232,7 +219,7 @@ pub fn choose_models(
     // Emission test: radiance is linear in emission, so the render without object k's emission is the render
     // with it minus J_k e_k — one set of basis renders answers every object.
     let params = layout::to_params(&x);
-    let je = jacobian::emission_columns(ctx, &params.materials, &pix, s.solve_spp, keys::SELECT + (3 << 20))?;
+    let je = jacobian::emission_columns(ctx, &params.materials, &pix, s.solve_spp, key::SELECT_EMISSION_COLUMNS)?;
     let pred: Vec<[f64; 3]> = (0..test.len())
         .map(|j| {
             let mut p = [0.0; 3];
@@ -251,7 +238,7 @@ pub fn choose_models(
     // (held-out gain 1.1 %, t > 3) and an albedo 0.09–0.17 too dark. The refit is a 1-variable L1 fit per
     // channel on the test pixels themselves, which if anything favours the smaller model.
     let rho_rows = if (0..k_count).any(|k| free[k] && (0..3).any(|c| x[idx(k, EMISSION + c)] > 0.0)) {
-        jacobian::pixel_rows(ctx, &params, &pix, s.solve_spp, keys::SELECT + (5 << 20))?
+        jacobian::pixel_rows(ctx, &params, &pix, s.solve_spp, key::SELECT_PIXEL_ROWS)?
     } else {
         Vec::new()
     };
@@ -322,7 +309,7 @@ pub fn choose_models(
         let run = AveragedSteps {
             unknowns: Unknowns::EmissionAndBaseColor,
             steps: s.refine_steps.max(2),
-            key: keys::SELECT + (6 << 20),
+            key: key::SELECT_EMISSION_REFIT,
         };
         run.apply(ctx, s, sets, &mut x, free, &no_emission)?;
     }
@@ -339,7 +326,7 @@ pub fn choose_models(
                 reasons.insert(0, format!(
                     "material unconstrained: {seen} (fewer than {}); its base colour, roughness and specular are the \
                      start values, not estimates",
-                    super::object::MIN_PIXELS
+                    solve::MIN_PIXELS
                 ));
             }
             let model = match (glossy[k], emits[k]) {

@@ -1,0 +1,31 @@
+//! Progress and decisions reported by the optimiser. The crate prints nothing: a long run reports its
+//! position through [`Progress`], whose implementation (a terminal progress bar, a log, nothing) is the
+//! caller's choice, and the decisions a user reads (a light kept or changed, a round's summary) through
+//! [`Progress::note`] as one line each. The same facts also go out as structured `tracing` events.
+
+/// Receives a run's progress: its length and position (rounds or iterations), a short status message, and
+/// one-line notes of decisions. Every method defaults to doing nothing.
+pub trait Progress: Sync {
+    /// The run has `total` steps.
+    fn set_length(&self, total: u64) {
+        let _ = total;
+    }
+    /// `position` steps are done.
+    fn set_position(&self, position: u64) {
+        let _ = position;
+    }
+    /// A short status of the current step (e.g. its loss).
+    fn set_message(&self, message: &str) {
+        let _ = message;
+    }
+    /// A decision or summary the user reads, one line.
+    fn note(&self, line: &str) {
+        let _ = line;
+    }
+}
+
+/// Reports nothing.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoProgress;
+
+impl Progress for NoProgress {}

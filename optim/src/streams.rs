@@ -1,0 +1,112 @@
+//! Every random-number stream the optimiser draws from, in one registry. A result is reproducible only if
+//! every random number is a pure function of its key (the architecture's reproducibility invariant: thread
+//! count never changes a result, a resumed run ends where the uninterrupted run ends), and two uses that
+//! shared a key would share their numbers; so each use takes its stream or key space from here, and the
+//! values are fixed (changing one changes every result that draws from it).
+//!
+//! Two kinds of random numbers:
+//! - the optimiser's own draws ([`uniform`], keyed by (seed, stream, a, b)): which pixels are held out, which
+//!   pixels a batch or a solve uses — one [`draw`] stream per use;
+//! - the tracer's path samples, keyed by (seed, iteration, pixel, sample, dimension): the `iteration`
+//!   argument of every tracer call comes from a [`key`] space, disjoint between uses.
+
+use tracer::PixelRef;
+
+/// SplitMix64 (Steele et al. 2014): the optimiser's counter-based random numbers; a value depends only on its
+/// key.
+#[must_use]
+pub fn mix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A uniform number in [0, 1) keyed by (seed, stream, a, b); `stream` is one of [`draw`].
+#[must_use]
+pub fn uniform(seed: u64, stream: u64, a: u64, b: u64) -> f64 {
+    let h = mix64(mix64(mix64(seed ^ mix64(stream)) ^ a) ^ b);
+    (h >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// A pixel's key for [`uniform`]: view, row and column packed (20 bits each for rows and columns).
+#[must_use]
+pub fn pixel_key(p: PixelRef) -> u64 {
+    (u64::from(p.view) << 40) | (u64::from(p.y) << 20) | u64::from(p.x)
+}
+
+/// Streams of [`uniform`], one per use, so different uses never share numbers.
+pub mod draw {
+    /// Per-object fit: whether a pixel is held out (keyed by the pixel).
+    pub const HOLDOUT: u64 = 1;
+    /// Per-object fit: the pixels of an Adam batch (keyed by the iteration).
+    pub const BATCH: u64 = 2;
+    /// Per-object fit: the pixels of a closed-form solve, and of an object's roughness search (keyed by the
+    /// solve's [`super::key`]).
+    pub const SOLVE_PIXELS: u64 = 3;
+    /// Model selection: whether a training pixel chooses its object's lobe or joins the lobe test (keyed by the
+    /// pixel).
+    pub const PROFILE: u64 = 4;
+    /// Per-triangle fit: the pixels of a light solve (keyed by its [`super::key::triangle`] key).
+    pub const TRIANGLE_EMISSION_PIXELS: u64 = 0x7265;
+    /// Per-triangle fit: the pixels of an Adam batch (keyed by its [`super::key::triangle`] key).
+    pub const TRIANGLE_BATCH: u64 = 0x7269;
+}
+
+/// Key spaces of the tracer's `iteration` argument. The per-object fit's keys lie below 4·2^32, the
+/// per-triangle fit's at 16·2^32 and above.
+pub mod key {
+    /// Per-object fit: emission solve number n (0 = the initial solve, else the Adam iteration it follows)
+    /// at `SOLVE + n`.
+    pub const SOLVE: u64 = 1 << 32;
+    /// Per-object fit: Gauss–Newton refinement step at `REFINE + step`.
+    pub const REFINE: u64 = 2 << 32;
+    /// Model selection: the base of its fields below (2^20 apart); object k's profile pixels at `SELECT + k`.
+    pub const SELECT: u64 = 3 << 32;
+    /// Model selection: the renders with and without the specular lobes (common random numbers).
+    pub const SELECT_LOBE_TEST: u64 = SELECT + (1 << 20);
+    /// Model selection: the averaged steps after the lobes were kept.
+    pub const SELECT_SPECULAR_STEPS: u64 = SELECT + (2 << 20);
+    /// Model selection: the emission columns of the emission test.
+    pub const SELECT_EMISSION_COLUMNS: u64 = SELECT + (3 << 20);
+    /// Model selection: object k's roughness search at `SELECT_ROUGHNESS + k`.
+    pub const SELECT_ROUGHNESS: u64 = SELECT + (4 << 20);
+    /// Model selection: the per-pixel base-colour rows of the emission refit.
+    pub const SELECT_PIXEL_ROWS: u64 = SELECT + (5 << 20);
+    /// Model selection: the averaged steps of the emission refit.
+    pub const SELECT_EMISSION_REFIT: u64 = SELECT + (6 << 20);
+    /// XORed into a solve's key for its second, independent Jacobian estimate (instrumental variables).
+    pub const SECOND_ESTIMATE: u64 = 1 << 31;
+    /// XORed into a roughness-profile point's key for its Jacobian (the value and its slope must not share
+    /// noise).
+    pub const PROFILE_JACOBIAN: u64 = 1 << 30;
+
+    /// Per-triangle fit: the key for (round, step), distinct for every render of the stage and disjoint from
+    /// the per-object fit's keys (< 4·2^32). Steps: ratio step k of pass p at `p·fit_steps + k` (< 2^16),
+    /// Adam iteration i at [`TRIANGLE_ADAM`]` | i`, light solve of pass p at [`TRIANGLE_EMISSION`]` | p`.
+    #[must_use]
+    pub fn triangle(round: u32, step: u32) -> u64 {
+        (16u64 << 32) | (u64::from(round) << 20) | u64::from(step)
+    }
+    /// Step field of [`triangle`] for the Adam iterations: above every ratio step (< 2^16 steps).
+    pub const TRIANGLE_ADAM: u32 = 1 << 16;
+    /// Step field of [`triangle`] for the light solve of pass p (`TRIANGLE_EMISSION | p`): above every ratio
+    /// step and Adam key (< 2^17 iterations), below the 2^20 of the round field.
+    pub const TRIANGLE_EMISSION: u32 = 1 << 17;
+    /// ORed into a light solve's key for its second, independent Jacobian estimate.
+    pub const TRIANGLE_EMISSION_SECOND: u64 = 1 << 18;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::key::triangle;
+
+    #[test]
+    fn render_keys_are_distinct_per_round_and_step() {
+        let mut keys: Vec<u64> = (0..4).flat_map(|r| (0..8).map(move |s| triangle(r, s))).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        assert_eq!(keys.len(), 32);
+        assert!(triangle(0, 0) > 4 << 32);
+    }
+}

@@ -1,0 +1,412 @@
+//! One round's closed-form fit of the per-triangle base colours on a fixed mesh: ratio steps (each
+//! triangle's value times photo sum over render sum, a Jacobi iteration towards T = R per triangle), shrunk
+//! towards the object's value where the evidence does not call for a difference (empirical Bayes), combined
+//! with the smoothness regulariser; optionally followed by Adam ([`super::adam`]). See the module docs of
+//! [`crate::triangle`].
+
+use std::collections::HashMap;
+
+use glam::{DVec3, Vec3};
+use tracer::PixelRef;
+
+use super::pixels::TriSample;
+use super::{RoundInputs, TriangleError, TriangleState};
+use crate::streams::key;
+
+/// A triangle's closed-form update uses only its interior pixels (footprint wholly on it) when it has at least
+/// this many: they depend on its own value alone. With fewer (small or grazing triangles) all its pixels are
+/// used; the Jacobi iteration then settles the pixels shared with neighbours.
+const MIN_INTERIOR: usize = 4;
+
+/// Gauss–Seidel sweeps of the smoothness solve. Observed triangles settle in a few sweeps (their data weight
+/// dominates); 64 sweeps carry a neighbour's value across ~8 unobserved triangles, beyond which a region keeps
+/// its starting (object) value — the intended fallback.
+const SMOOTH_SWEEPS: usize = 64;
+
+/// What a round's fit leaves for the split test.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fitted {
+    /// Mean per-channel |photo − render| over the fitted pixels, per step (before its update).
+    pub loss: Vec<f64>,
+    /// Per sample: photo − predicted render after the last update.
+    pub residual: Vec<Vec3>,
+    /// Per triangle: its parameters were fitted (its object does not emit).
+    pub free: Vec<bool>,
+    /// Path samples the round traced (value and gradient paths, discarded ones included).
+    pub traced_paths: u64,
+    /// Of these, the samples the tracer discarded as non-finite (at most
+    /// [`crate::fit::samples::MAX_DISCARDED_FRACTION`] of them, else the round fails).
+    pub discarded_samples: u64,
+}
+
+/// Pairs of triangles of one object that share an edge (edges identified by vertex position, as in
+/// [`crate::subdivide`]); per triangle, its neighbours.
+#[must_use]
+pub fn neighbours(state: &TriangleState) -> Vec<Vec<u32>> {
+    let key = |v: u32| state.positions[v as usize].to_array().map(|x| if x == 0.0 { 0 } else { x.to_bits() });
+    let mut edges: HashMap<([u32; 3], [u32; 3]), Vec<u32>> = HashMap::new();
+    for (t, tri) in state.triangles.iter().enumerate() {
+        for e in 0..3 {
+            let (a, b) = (key(tri[e]), key(tri[(e + 1) % 3]));
+            let k = if a <= b { (a, b) } else { (b, a) };
+            edges.entry(k).or_default().push(t as u32);
+        }
+    }
+    let mut out = vec![Vec::new(); state.triangles.len()];
+    let mut keys: Vec<_> = edges.into_iter().collect();
+    keys.sort_unstable_by_key(|k| k.0); // deterministic neighbour order
+    for (_, tris) in keys {
+        for (i, &t) in tris.iter().enumerate() {
+            for &u in &tris[i + 1..] {
+                if state.face_object[t as usize] == state.face_object[u as usize] && t != u {
+                    out[t as usize].push(u);
+                    out[u as usize].push(t);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `min Σ_t n_t (ρ_t − r_t)² + λ Σ_(t,u) (ρ_t − ρ_u)²` over the free triangles by Gauss–Seidel, from `rho`
+/// (updated in place). Triangles with neither data nor free neighbours keep their value.
+pub fn smooth_solve(rho: &mut [Vec3], ratio: &[Vec3], weight: &[f64], nbrs: &[Vec<u32>], free: &[bool], lambda: f64) {
+    for _ in 0..SMOOTH_SWEEPS {
+        for t in 0..rho.len() {
+            if !free[t] {
+                continue;
+            }
+            let mut num = ratio[t].as_dvec3() * weight[t];
+            let mut den = weight[t];
+            for &u in &nbrs[t] {
+                num += rho[u as usize].as_dvec3() * lambda;
+                den += lambda;
+            }
+            if den > 0.0 {
+                rho[t] = (num / den).as_vec3().clamp(Vec3::ZERO, Vec3::ONE);
+            }
+        }
+    }
+}
+
+/// Shrink every triangle's estimate towards its object's pooled value ([`shrink_to_object`]) before the
+/// smoothness solve. Measured in `docs/optim/design-measurements.md`.
+const SHRINK: bool = true;
+
+/// 99.9 % quantile of χ² with 3 degrees of freedom (one per colour channel): the significance level of the
+/// object-level update in [`shrink_to_object`] (a uniform object keeps its value 999 times in 1000 per step).
+const CHI2_3_999: f64 = 16.266;
+
+/// One fit step's evidence per triangle, over the pixels its update uses: the current base colour, the sums of
+/// photo and render values, of squared differences (photo − render)², and the pixel count.
+#[derive(Debug, Clone, Copy)]
+pub struct Evidence<'a> {
+    pub old: &'a [Vec3],
+    pub t_sum: &'a [DVec3],
+    pub r_sum: &'a [DVec3],
+    pub d_sq: &'a [DVec3],
+    pub count: &'a [f64],
+    /// Interior pixels (footprint wholly on the triangle) per triangle.
+    pub interior: &'a [usize],
+}
+
+impl Evidence<'_> {
+    /// Sampling variance (per channel) of triangle `t`'s ratio estimate `ρ·T/R`, or `None` with fewer than 2
+    /// pixels or no rendered radiance. The pixel differences photo − render scatter by the photo's and the
+    /// render's Monte Carlo noise (plus any texture inside the triangle); their variance s² over the n pixels
+    /// gives Var(T − R) = n·s², and ρ·T/R − ρ = ρ·(T − R)/R, so Var = ρ²·n·s²/R².
+    #[must_use]
+    pub fn ratio_variance(&self, t: usize) -> Option<DVec3> {
+        let n = self.count[t];
+        if n < 2.0 || self.r_sum[t].min_element() <= 0.0 {
+            return None;
+        }
+        let mean_d = (self.t_sum[t] - self.r_sum[t]) / n;
+        let s2 = (self.d_sq[t] - mean_d * mean_d * n) / (n - 1.0);
+        let rho = self.old[t].as_dvec3();
+        Some(rho * rho * n * s2.max(DVec3::ZERO) / (self.r_sum[t] * self.r_sum[t]))
+    }
+}
+
+/// Empirical-Bayes (James–Stein) shrinkage of the per-triangle estimates `ratio` towards their object's pooled
+/// value: per object and channel, the prior mean m = ΣT / Σ(R/ρ) is the object-level ratio update over all its
+/// observed triangles' pixels (one ratio of two large sums: the per-triangle ratio T_t/R_t has the noise of a
+/// few dozen pixels' renders in its denominator, which biases it upwards — E\[1/R\] > 1/E\[R\] — far more), the
+/// estimates r_t have sampling variances v_t ([`Evidence::ratio_variance`]), and the spread of the true values
+/// τ² = max(0, mean_t[(r_t − m)² − v_t]) is what the estimates scatter beyond their noise. Each estimate becomes
+/// m + τ²/(τ² + v_t)·(r_t − m): on a uniform object (scatter explained by noise, τ² ≈ 0) every triangle keeps
+/// the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen in a single pixel (no
+/// measurable noise) or in fewer than `MIN_INTERIOR` interior pixels (its estimate rests on pixels shared with
+/// neighbours and absorbs their misfit) has no clean evidence of a difference: it takes m. Unobserved triangles (left to the
+/// smoothness solve) and those of emitting objects are unchanged. Only triangles with clean evidence enter m
+/// and τ²; with fewer than 2 of them an object keeps its current value.
+#[must_use]
+pub fn shrink_to_object(
+    ratio: &[Vec3],
+    ev: &Evidence<'_>,
+    face_object: &[u32],
+    free: &[bool],
+    objects: usize,
+) -> Vec<Vec3> {
+    let var: Vec<Option<DVec3>> = (0..ratio.len()).map(|t| if free[t] { ev.ratio_variance(t) } else { None }).collect();
+    // Per object and channel: Σ T and Σ R/ρ (the render per unit albedo) over its observed triangles.
+    let mut pooled = vec![(DVec3::ZERO, DVec3::ZERO, 0usize); objects];
+    for (t, v) in var.iter().enumerate() {
+        // Only triangles with clean evidence (interior pixels, see below) inform the object's value.
+        if v.is_none() || ev.interior[t] < MIN_INTERIOR || ev.old[t].min_element() <= 0.0 {
+            continue;
+        }
+        let o = &mut pooled[face_object[t] as usize];
+        o.0 += ev.t_sum[t];
+        o.1 += ev.r_sum[t] / ev.old[t].as_dvec3();
+        o.2 += 1;
+    }
+    // The object's current value (pixel-weighted mean of its triangles' values) and the variance of the pooled
+    // ratio, Σ n_t s_t² · (ρ_t/R_t)²-weighted like the per-triangle one: Var(ΣT − ΣR)/(Σ R/ρ)².
+    let mut current = vec![(DVec3::ZERO, 0.0f64, DVec3::ZERO); objects];
+    for (t, v) in var.iter().enumerate() {
+        if !free[t] || ev.count[t] <= 0.0 {
+            continue;
+        }
+        let o = &mut current[face_object[t] as usize];
+        o.0 += ev.old[t].as_dvec3() * ev.count[t];
+        o.1 += ev.count[t];
+        let Some(v) = v.filter(|_| ev.interior[t] >= MIN_INTERIOR) else { continue };
+        // v_t = ρ²·n·s²/R², so n·s² = v_t·(R/ρ)².
+        let per_albedo = ev.r_sum[t] / ev.old[t].as_dvec3().max(DVec3::splat(f64::MIN_POSITIVE));
+        o.2 += v * per_albedo * per_albedo;
+    }
+    let mean: Vec<Option<DVec3>> = pooled
+        .iter()
+        .zip(&current)
+        .map(|((t, r, k), (cur, n, var_diff))| {
+            if *n <= 0.0 {
+                return None;
+            }
+            let cur = *cur / *n;
+            // Fewer than 2 triangles with clean evidence: the object keeps its value.
+            if *k < 2 || r.min_element() <= 0.0 {
+                return Some(cur);
+            }
+            let m = (*t / *r).clamp(DVec3::ZERO, DVec3::ONE);
+            // The object-level update is itself evidence: it moves the object's value only when significant,
+            // z² = Σ_c (m − current)²/Var(m) above the 99.9 % quantile of χ²(3), 16.27 (a barely seen object,
+            // e.g. a ceiling in 84 pixels mostly shared with walls, otherwise drifts on noise over the steps).
+            let var_m = *var_diff / (*r * *r);
+            let z2 = ((m - cur) * (m - cur) / var_m.max(DVec3::splat(1e-300))).element_sum();
+            Some(if z2 > CHI2_3_999 { m } else { cur })
+        })
+        .collect();
+    let mut excess = vec![(DVec3::ZERO, 0usize); objects];
+    for (t, v) in var.iter().enumerate() {
+        let (Some(v), Some(m)) = (v, mean[face_object[t] as usize]) else { continue };
+        if ev.interior[t] < MIN_INTERIOR {
+            continue;
+        }
+        let d = ratio[t].as_dvec3() - m;
+        let e = &mut excess[face_object[t] as usize];
+        e.0 += d * d - *v;
+        e.1 += 1;
+    }
+    let tau2: Vec<DVec3> = excess.iter().map(|(s, k)| (*s / (*k).max(1) as f64).max(DVec3::ZERO)).collect();
+    (0..ratio.len())
+        .map(|t| {
+            let o = face_object[t] as usize;
+            let Some(m) = mean[o].filter(|_| free[t]) else { return ratio[t] };
+            // Seen in fewer than MIN_INTERIOR interior pixels (its estimate then rests on pixels shared with
+            // neighbours, whose misfit it absorbs) or in a single pixel (no measurable noise): no clean evidence
+            // of a difference, so the object's value.
+            if ev.count[t] > 0.0 && (var[t].is_none() || ev.interior[t] < MIN_INTERIOR) {
+                return m.as_vec3();
+            }
+            let Some(v) = var[t] else { return ratio[t] };
+            let keep = tau2[o] / (tau2[o] + v).max(DVec3::splat(f64::MIN_POSITIVE));
+            (m + keep * (ratio[t].as_dvec3() - m)).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
+        })
+        .collect()
+}
+
+/// The object fit's bound on discarded path samples (`crate::fit::samples`), applied to a round's work.
+pub(super) fn bound_discards(round: u32, discarded: u64, paths: u64) -> Result<(), TriangleError> {
+    if crate::fit::samples::within_bound(discarded, paths) {
+        Ok(())
+    } else {
+        Err(TriangleError::TooManyDiscarded { round, discarded, paths })
+    }
+}
+
+/// Runs the fit of one round on `state` (updated in place): `fit_steps` ratio steps under the current light.
+pub fn fit_round(
+    inputs: &RoundInputs<'_>,
+    scene: &tracer::Scene,
+    samples: &[TriSample],
+    state: &mut TriangleState,
+    round: u32,
+) -> Result<Fitted, TriangleError> {
+    fit_pass(inputs, scene, samples, state, round, 0)
+}
+
+/// Pass `pass` of a round's fit: `fit_steps` ratio steps under the current light, random numbers keyed by
+/// (seed, round, pass, step); pass 0 is [`fit_round`], later passes are [`super::light::refine_light`]'s.
+pub fn fit_pass(
+    inputs: &RoundInputs<'_>,
+    scene: &tracer::Scene,
+    samples: &[TriSample],
+    state: &mut TriangleState,
+    round: u32,
+    pass: u32,
+) -> Result<Fitted, TriangleError> {
+    let cfg = inputs.settings;
+    let n = state.triangles.len();
+    // Emitting objects keep their per-object materials (emission and materials are entangled there); their
+    // emission is re-solved between passes of ratio steps. Only objects that emit now may emit: the object
+    // stage's model decision (no emission) holds every other object at 0.
+    let emits: Vec<bool> = state.emission.iter().map(|e| e.max_element() > 0.0).collect();
+    let free: Vec<bool> = state.face_object.iter().map(|&o| !emits[o as usize]).collect();
+    let nbrs = neighbours(state);
+    let mut interior = vec![0usize; n];
+    for s in samples {
+        interior[s.tri as usize] += usize::from(s.interior);
+    }
+    let used = |s: &TriSample| s.interior || interior[s.tri as usize] < MIN_INTERIOR;
+    let pix: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
+    let mut loss = Vec::new();
+    let mut residual = vec![Vec3::ZERO; samples.len()];
+    let mut work = tracer::TraceStats::default();
+    let steps = cfg.fit_steps.max(1);
+    for k in pass * steps..(pass + 1) * steps {
+        let params = state.params();
+        let (values, stats) = tracer::Renderer::new(scene, &params, inputs.tracer)?.render_pixels(
+            inputs.cameras,
+            &pix,
+            cfg.spp,
+            cfg.seed,
+            key::triangle(round, k),
+        )?;
+        work.add(&stats);
+        let mut t_sum = vec![DVec3::ZERO; n];
+        let mut r_sum = vec![DVec3::ZERO; n];
+        let mut d_sq = vec![DVec3::ZERO; n];
+        let mut count = vec![0f64; n];
+        let mut l = 0.0;
+        for (s, v) in samples.iter().zip(&values) {
+            l += f64::from((*v - s.target).abs().element_sum()) / 3.0;
+            if used(s) {
+                let t = s.tri as usize;
+                let d = (s.target - *v).as_dvec3();
+                t_sum[t] += s.target.as_dvec3();
+                r_sum[t] += v.as_dvec3();
+                d_sq[t] += d * d;
+                count[t] += 1.0;
+            }
+        }
+        loss.push(l / samples.len().max(1) as f64);
+        let old: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
+        let mut rho = old.clone();
+        if cfg.fit_steps > 0 {
+            let ratio: Vec<Vec3> = (0..n)
+                .map(|t| {
+                    let r = r_sum[t];
+                    let q = |c: usize| if r[c] > 0.0 { t_sum[t][c] / r[c] } else { 1.0 };
+                    (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
+                })
+                .collect();
+            let ratio = if SHRINK {
+                let evidence = Evidence {
+                    old: &old,
+                    t_sum: &t_sum,
+                    r_sum: &r_sum,
+                    d_sq: &d_sq,
+                    count: &count,
+                    interior: &interior,
+                };
+                shrink_to_object(&ratio, &evidence, &state.face_object, &free, state.emission.len())
+            } else {
+                ratio
+            };
+            smooth_solve(&mut rho, &ratio, &count, &nbrs, &free, cfg.smoothness);
+            for (m, r) in state.materials.iter_mut().zip(&rho) {
+                m.base_color = *r;
+            }
+        }
+        // Residuals against the render predicted for the updated values: a pixel's radiance is linear in the
+        // base colour of the triangle its centre sees (exactly so for an interior pixel of a diffuse one).
+        for (j, (s, v)) in samples.iter().zip(&values).enumerate() {
+            let t = s.tri as usize;
+            let scale =
+                Vec3::select(old[t].cmpgt(Vec3::ZERO), rho[t] / old[t].max(Vec3::splat(f32::MIN_POSITIVE)), Vec3::ONE);
+            residual[j] = s.target - *v * scale;
+        }
+    }
+    if cfg.adam_iterations > 0 {
+        super::adam::adam(inputs, scene, samples, state, &free, &nbrs, round, &mut work)?;
+    }
+    // The object fit's bound and reasons (`crate::fit::samples`), per round.
+    if work.discarded > 0 {
+        tracing::warn!(round, discarded = work.discarded, paths = work.paths, "non-finite path samples discarded");
+    }
+    bound_discards(round, work.discarded, work.paths)?;
+    Ok(Fitted { loss, residual, free, traced_paths: work.paths, discarded_samples: work.discarded })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn smoothing_fills_an_unobserved_triangle_with_its_neighbours_mean_and_keeps_isolated_ones() {
+        // Chain 0 - 1 - 2 (1 unobserved) and 3 alone (unobserved).
+        let nbrs = vec![vec![1], vec![0, 2], vec![1], vec![]];
+        let ratio = vec![Vec3::splat(0.2), Vec3::ZERO, Vec3::splat(0.6), Vec3::ZERO];
+        let weight = [100.0, 0.0, 100.0, 0.0];
+        let mut rho = vec![Vec3::splat(0.5); 4];
+        smooth_solve(&mut rho, &ratio, &weight, &nbrs, &[true; 4], 1.0);
+        assert!((rho[1].x - 0.4).abs() < 1e-3, "{rho:?}");
+        assert_eq!(rho[3], Vec3::splat(0.5));
+        // Observed triangles move only slightly towards their neighbour (weight 100 vs 1).
+        assert!((rho[0].x - 0.2).abs() < 0.01, "{rho:?}");
+    }
+
+    /// Evidence of triangles that each saw 100 interior pixels with render = photo·ρ_old/ρ_true (so the ratio
+    /// is the true value) and a pixel scatter giving ratio variance `v`.
+    type Sums = (Vec<DVec3>, Vec<DVec3>, Vec<DVec3>, Vec<f64>, Vec<usize>);
+
+    fn evidence(old: &[Vec3], truth: &[Vec3], v: f64) -> Sums {
+        let n = 100.0;
+        let t_sum: Vec<DVec3> = truth.iter().map(|_| DVec3::splat(n * 0.5)).collect();
+        let r_sum: Vec<DVec3> =
+            old.iter().zip(truth).map(|(o, t)| DVec3::splat(n * 0.5) * o.as_dvec3() / t.as_dvec3()).collect();
+        // v = ρ²·n·s²/R² ⇒ Σd² ≈ (n − 1)·s² + n·mean_d².
+        let d_sq: Vec<DVec3> = (0..old.len())
+            .map(|t| {
+                let rho = old[t].as_dvec3();
+                let s2 = DVec3::splat(v) * r_sum[t] * r_sum[t] / (rho * rho * n);
+                let mean_d = (t_sum[t] - r_sum[t]) / n;
+                s2 * (n - 1.0) + mean_d * mean_d * n
+            })
+            .collect();
+        (t_sum, r_sum, d_sq, vec![n; old.len()], vec![100; old.len()])
+    }
+
+    #[test]
+    fn a_uniform_object_keeps_its_value_and_a_textured_one_its_triangles_values() {
+        // Object 0: uniform 0.5, triangle ratios scattered by exactly the noise (±0.01, v = 1e-4).
+        // Object 1: a checker 0.2 / 0.8 (spread far beyond the same noise).
+        let old = vec![Vec3::splat(0.5); 8];
+        let ratio: Vec<Vec3> = [0.51, 0.49, 0.51, 0.49, 0.2, 0.8, 0.2, 0.8].iter().map(|&x| Vec3::splat(x)).collect();
+        let (t_sum, r_sum, d_sq, count, interior) = evidence(&old, &ratio, 1e-4);
+        let ev = Evidence { old: &old, t_sum: &t_sum, r_sum: &r_sum, d_sq: &d_sq, count: &count, interior: &interior };
+        let v = ev.ratio_variance(0).unwrap();
+        assert!((v.x - 1e-4).abs() < 1e-9, "{v}");
+        let face_object = [0, 0, 0, 0, 1, 1, 1, 1];
+        let out = shrink_to_object(&ratio, &ev, &face_object, &[true; 8], 2);
+        for t in 0..4 {
+            // Object-level update 0.5 is not significantly different from 0.5: every triangle keeps 0.5.
+            assert!((out[t].x - 0.5).abs() < 1e-6, "{out:?}");
+        }
+        for t in 4..8 {
+            // τ² ≈ 0.09 ≫ v: shrink factor ≈ 1e-4/0.09, the values move by < 0.001.
+            assert!((out[t].x - ratio[t].x).abs() < 1e-3, "{out:?}");
+        }
+    }
+}
