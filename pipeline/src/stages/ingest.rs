@@ -17,7 +17,6 @@ use serde::{Deserialize, Serialize};
 
 use super::StageError;
 use crate::atomic_file::{write_atomic, write_json_atomic};
-use crate::config::{GroupBy, ScanFormat};
 use crate::runner::StageContext;
 
 /// Mesh file name inside the stage directory.
@@ -129,31 +128,10 @@ pub fn tracer_camera(c: &ingest::camera::Camera) -> tracer::Camera {
     }
 }
 
-fn ingest_format(f: ScanFormat) -> ingest::scan::ScanFormat {
-    use ingest::scan::ScanFormat as I;
-    match f {
-        ScanFormat::Auto => I::Auto,
-        ScanFormat::Matterport => I::Matterport,
-        ScanFormat::MatterportRaw => I::MatterportRaw,
-        ScanFormat::Obj => I::Obj,
-        ScanFormat::Colmap => I::Colmap,
-        ScanFormat::Transforms => I::Transforms,
-    }
-}
-
-fn ingest_group_by(g: GroupBy) -> ingest::scan::GroupBy {
-    match g {
-        GroupBy::Segment => ingest::scan::GroupBy::Segment,
-        GroupBy::Category => ingest::scan::GroupBy::Category,
-        GroupBy::Material => ingest::scan::GroupBy::Material,
-    }
-}
-
 /// Runs the stage.
 pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let plan = ctx.plan;
-    let scan =
-        ingest::scan::load_scan(&plan.scan.path, ingest_format(plan.scan.format), ingest_group_by(plan.scan.group_by))?;
+    let scan = ingest::scan::load_scan(&plan.scan.path, plan.scan.format, plan.scan.group_by)?;
     if scan.views.is_empty() {
         return Err(StageError::Artefact { path: plan.scan.path.clone(), message: "the scan has no views".into() });
     }
