@@ -3,8 +3,11 @@
 //!
 //! Code map: [`config`] (TOML as written, `--set`) → [`plan`] (validated, paths resolved, stage list) →
 //! [`runner`] (skip/rerun decisions, [`manifest`]s) → [`stages`] (the work) → [`materials`], [`report`].
+//! The runner and the stages meet in [`stage_contract`]; what each stage writes and how it is read back is
+//! in [`artefacts`].
 //! [`fit`] holds the per-object optimisation and [`synth`] the synthetic-scan generator.
 
+pub mod artefacts;
 pub mod atomic_file;
 pub mod bench;
 pub mod cli;
@@ -18,6 +21,7 @@ pub mod presets;
 pub mod render_cmd;
 pub mod report;
 pub mod runner;
+pub mod stage_contract;
 pub mod stages;
 pub mod subdivide;
 pub mod synth;

@@ -14,10 +14,10 @@ use std::path::{Path, PathBuf};
 
 use glam::{Affine3A, DMat4};
 
+use crate::artefacts::ingest::Ingested;
 use crate::atomic_file::write_atomic;
 use crate::cli::RenderArgs;
 use crate::materials::MaterialsFile;
-use crate::stages::ingest::Ingested;
 
 /// Errors of `pipeline render`.
 #[derive(Debug, thiserror::Error)]
@@ -31,7 +31,7 @@ pub enum RenderError {
     #[error("{path}:{line}: {message}", path = .path.display())]
     Conf { path: PathBuf, line: usize, message: String },
     #[error("{0}")]
-    Stage(#[from] crate::stages::StageError),
+    Stage(#[from] crate::stage_contract::StageError),
     #[error(transparent)]
     Materials(#[from] crate::materials::MaterialsError),
     #[error("tracer: {0}")]
