@@ -13,10 +13,10 @@ use std::path::{Path, PathBuf};
 
 use super::metrics::{self, Accuracy};
 use super::scenes::{self, BenchScene};
-use super::svg::{self, Panel, Series};
 use super::{BenchError, FitSetup};
 use crate::config::TriangleConfig;
 use crate::fit::ObjectFitSettings;
+use crate::svg::{self, Panel, Series};
 
 /// Paths per pixel of the re-renders of the held-back views: their own noise (relative L1 ≈ 1–2 % on the
 /// demo's 96×72 views, measured by rendering the truth the same way) is the floor of that column.
