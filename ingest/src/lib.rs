@@ -14,6 +14,7 @@ pub mod photo;
 pub mod ply;
 pub mod pose;
 pub mod scan;
+pub mod srgb;
 pub mod transforms;
 
 pub use atomic::write_atomic;

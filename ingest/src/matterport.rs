@@ -188,18 +188,39 @@ fn parse_floats<const N: usize>(path: &Path, line: usize, tokens: &[&str]) -> Re
     Ok(out)
 }
 
-/// Reads the undistorted cameras of `undistorted_camera_parameters/<id>.conf`. `intrinsics_matrix` applies to
-/// every following `scan` line until the next one. Each image's size is read from its header; images that share
-/// an `intrinsics_matrix` must share a size, and the principal point must lie inside the image.
-pub fn load_views_conf(dir: &Path) -> Result<Vec<View>, IngestError> {
-    let conf = find_conf(dir)?;
-    let text = std::fs::read_to_string(&conf).map_err(|e| IngestError::io(&conf, e))?;
-    let mut color_dir = dir.join("undistorted_color_images");
+/// One `scan` line of a Matterport `.conf`, converted to the workspace convention (camera-to-world, OpenGL
+/// camera frame — Matterport's own).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfScan {
+    /// 1-based line of the `scan` entry.
+    pub line: usize,
+    /// The colour image as listed (relative to `color_directory`).
+    pub color_file: String,
+    /// The `color_directory` in force for this line, when the file set one (relative to the scan directory).
+    pub color_directory: Option<String>,
+    /// The `intrinsics_matrix` in force for this line.
+    pub intrinsics: Intrinsics,
+    /// 1-based line of that `intrinsics_matrix`: scans with the same value share it (and, in a scan, a size).
+    pub intrinsics_line: usize,
+    /// Camera-to-world, checked rigid.
+    pub cam_to_world: glam::DMat4,
+}
+
+/// A Matterport `.conf` as read: its `scan` entries in order and the `n_images` it declares.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Conf {
+    pub scans: Vec<ConfScan>,
+    pub n_images: Option<usize>,
+}
+
+/// Reads a Matterport `.conf` (the undistorted cameras; also what `pipeline render` takes): every
+/// `intrinsics_matrix fx 0 cx 0 fy cy 0 0 1` applies to the following `scan <depth> <color> <16 camera-to-world
+/// values, row-major>` lines until the next one. Errors name the line. Images are not opened here.
+pub fn read_conf(conf: &Path) -> Result<Conf, IngestError> {
+    let text = std::fs::read_to_string(conf).map_err(|e| IngestError::io(conf, e))?;
+    let mut color_directory: Option<String> = None;
     let mut intrinsics: Option<(Intrinsics, usize)> = None;
-    // Size of the first image under the current intrinsics block, and its path.
-    let mut block_size: Option<(u32, u32, PathBuf)> = None;
-    let mut n_images = None;
-    let mut views = Vec::new();
+    let mut out = Conf::default();
     for (k, line) in text.lines().enumerate() {
         let ln = k + 1;
         let tokens: Vec<&str> = line.split_ascii_whitespace().collect();
@@ -209,39 +230,37 @@ pub fn load_views_conf(dir: &Path) -> Result<Vec<View>, IngestError> {
             if args.len() == n {
                 Ok(())
             } else {
-                Err(IngestError::line(&conf, ln, format!("`{key}` line has {} values, expected {n}", args.len())))
+                Err(IngestError::line(conf, ln, format!("`{key}` line has {} values, expected {n}", args.len())))
             }
         };
         match key {
             "dataset" | "depth_directory" => {}
             "n_images" => {
                 want(1)?;
-                n_images = Some(
-                    args[0].parse::<usize>().map_err(|_| IngestError::line(&conf, ln, "n_images is not a count"))?,
-                );
+                out.n_images =
+                    Some(args[0].parse::<usize>().map_err(|_| IngestError::line(conf, ln, "n_images is not a count"))?);
             }
             "color_directory" => {
                 want(1)?;
-                color_dir = dir.join(args[0]);
+                color_directory = Some(args[0].to_owned());
             }
             "intrinsics_matrix" => {
                 want(9)?;
-                let m: [f64; 9] = parse_floats(&conf, ln, args)?;
+                let m: [f64; 9] = parse_floats(conf, ln, args)?;
                 let k = Intrinsics { fx: m[0], fy: m[4], cx: m[2], cy: m[5] };
                 if !m.iter().all(|v| v.is_finite()) || k.fx <= 0.0 || k.fy <= 0.0 {
                     return Err(IngestError::line(
-                        &conf,
+                        conf,
                         ln,
                         "intrinsics_matrix needs finite values and positive fx, fy",
                     ));
                 }
                 intrinsics = Some((k, ln));
-                block_size = None;
             }
             "scan" => {
                 if args.len() != 18 {
                     return Err(IngestError::line(
-                        &conf,
+                        conf,
                         ln,
                         format!(
                             "`scan` line has {} values, expected 18 (depth file, color file, 16 pose values)",
@@ -249,61 +268,85 @@ pub fn load_views_conf(dir: &Path) -> Result<Vec<View>, IngestError> {
                         ),
                     ));
                 }
-                let Some((k, _)) = intrinsics else {
-                    return Err(IngestError::line(&conf, ln, "`scan` line before any intrinsics_matrix"));
+                let Some((k, k_line)) = intrinsics else {
+                    return Err(IngestError::line(conf, ln, "`scan` line before any intrinsics_matrix"));
                 };
-                let m: [f64; 16] = parse_floats(&conf, ln, &args[2..])?;
+                let m: [f64; 16] = parse_floats(conf, ln, &args[2..])?;
                 let cam_to_world = from_row_major(&m);
-                check_rigid(&cam_to_world).map_err(|why| IngestError::line(&conf, ln, why))?;
-                let listed = color_dir.join(args[1]);
-                let image_path = resolve_image(&listed, &conf)?;
-                let (w, h) = image_dimensions(&image_path)?;
-                match &block_size {
-                    None => block_size = Some((w, h, image_path.clone())),
-                    Some((bw, bh, first)) if (*bw, *bh) != (w, h) => {
-                        return Err(IngestError::ImageSize {
-                            path: image_path,
-                            width: w,
-                            height: h,
-                            expected: format!(
-                                "{} ({bw}x{bh}) shares its intrinsics_matrix ({}:{ln})",
-                                first.display(),
-                                conf.display()
-                            ),
-                        });
-                    }
-                    Some(_) => {}
-                }
-                if !(0.0..=f64::from(w)).contains(&k.cx) || !(0.0..=f64::from(h)).contains(&k.cy) {
-                    return Err(IngestError::ImageSize {
-                        path: image_path,
-                        width: w,
-                        height: h,
-                        expected: format!(
-                            "the principal point ({}, {}) of {}:{ln} lies outside it",
-                            k.cx,
-                            k.cy,
-                            conf.display()
-                        ),
-                    });
-                }
-                let name = Path::new(args[1]).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-                views.push(View {
-                    name,
-                    image_path,
-                    camera: Camera {
-                        width: w,
-                        height: h,
-                        intrinsics: k,
-                        distortion: Distortion::default(),
-                        cam_to_world,
-                    },
+                check_rigid(&cam_to_world).map_err(|why| IngestError::line(conf, ln, why))?;
+                out.scans.push(ConfScan {
+                    line: ln,
+                    color_file: args[1].to_owned(),
+                    color_directory: color_directory.clone(),
+                    intrinsics: k,
+                    intrinsics_line: k_line,
+                    cam_to_world,
                 });
             }
             other => tracing::warn!("{}:{ln}: ignoring unknown keyword {other:?}", conf.display()),
         }
     }
-    if let Some(n) = n_images
+    Ok(out)
+}
+
+/// Reads the undistorted cameras of `undistorted_camera_parameters/<id>.conf` ([`read_conf`]). Each image's
+/// size is read from its header; images that share an `intrinsics_matrix` must share a size, and the principal
+/// point must lie inside the image.
+pub fn load_views_conf(dir: &Path) -> Result<Vec<View>, IngestError> {
+    let conf = find_conf(dir)?;
+    let parsed = read_conf(&conf)?;
+    // Size of the first image under the current intrinsics block, and its path.
+    let mut block_size: Option<(usize, u32, u32, PathBuf)> = None;
+    let mut views = Vec::new();
+    for s in &parsed.scans {
+        let (ln, k) = (s.line, s.intrinsics);
+        let color_dir = dir.join(s.color_directory.as_deref().unwrap_or("undistorted_color_images"));
+        let listed = color_dir.join(&s.color_file);
+        let image_path = resolve_image(&listed, &conf)?;
+        let (w, h) = image_dimensions(&image_path)?;
+        match &block_size {
+            Some((block, bw, bh, first)) if *block == s.intrinsics_line && (*bw, *bh) != (w, h) => {
+                return Err(IngestError::ImageSize {
+                    path: image_path,
+                    width: w,
+                    height: h,
+                    expected: format!(
+                        "{} ({bw}x{bh}) shares its intrinsics_matrix ({}:{ln})",
+                        first.display(),
+                        conf.display()
+                    ),
+                });
+            }
+            Some((block, ..)) if *block == s.intrinsics_line => {}
+            _ => block_size = Some((s.intrinsics_line, w, h, image_path.clone())),
+        }
+        if !(0.0..=f64::from(w)).contains(&k.cx) || !(0.0..=f64::from(h)).contains(&k.cy) {
+            return Err(IngestError::ImageSize {
+                path: image_path,
+                width: w,
+                height: h,
+                expected: format!(
+                    "the principal point ({}, {}) of {}:{ln} lies outside it",
+                    k.cx,
+                    k.cy,
+                    conf.display()
+                ),
+            });
+        }
+        let name = Path::new(&s.color_file).file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        views.push(View {
+            name,
+            image_path,
+            camera: Camera {
+                width: w,
+                height: h,
+                intrinsics: k,
+                distortion: Distortion::default(),
+                cam_to_world: s.cam_to_world,
+            },
+        });
+    }
+    if let Some(n) = parsed.n_images
         && n != views.len()
     {
         tracing::warn!("{}: n_images says {n} but {} scan lines were read", conf.display(), views.len());

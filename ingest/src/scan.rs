@@ -42,21 +42,27 @@ pub struct Scan {
     pub views: Vec<View>,
 }
 
-/// Which per-face id column defines objects.
+/// Which per-face id column defines objects: one variant per column, so that the config (which deserialises
+/// this type, `scan.group_by`) names each column once. OBJ readers store `o`/`g` groups in the segment column
+/// and `usemtl` materials in the material column; [`GroupBy::OBJ_GROUP`] and [`GroupBy::OBJ_MATERIAL`] name
+/// those for Rust callers without adding config values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum GroupBy {
-    /// Matterport `segment_id` (object instances); the default.
+    /// Matterport `segment_id` (object instances); OBJ `o`/`g` groups. The default.
     #[default]
     Segment,
     /// Matterport `category_id`.
     Category,
-    /// Matterport `material_id` (over-segments).
+    /// Matterport `material_id` (over-segments); OBJ `usemtl` materials.
     Material,
-    /// OBJ `o`/`g` groups (stored in the segment column, so an alias of `Segment`).
-    ObjGroup,
-    /// OBJ `usemtl` materials (stored in the material column, so an alias of `Material`).
-    ObjMaterial,
+}
+
+impl GroupBy {
+    /// OBJ `o`/`g` groups (stored in the segment column).
+    pub const OBJ_GROUP: GroupBy = GroupBy::Segment;
+    /// OBJ `usemtl` materials (stored in the material column).
+    pub const OBJ_MATERIAL: GroupBy = GroupBy::Material;
 }
 
 /// Scan directory layouts.
@@ -235,9 +241,9 @@ pub fn assemble(labeled: LabeledMesh, mesh_source: &Path, views: Vec<View>, grou
     let LabeledMesh { mut mesh, segment_labels, category_labels, material_labels } = labeled;
     mesh.drop_zero_area(mesh_source);
     let (ids, labels) = match group_by {
-        GroupBy::Segment | GroupBy::ObjGroup => (&mesh.face_segment, &segment_labels),
+        GroupBy::Segment => (&mesh.face_segment, &segment_labels),
         GroupBy::Category => (&mesh.face_category, &category_labels),
-        GroupBy::Material | GroupBy::ObjMaterial => (&mesh.face_material, &material_labels),
+        GroupBy::Material => (&mesh.face_material, &material_labels),
     };
     let mut counts: BTreeMap<i32, usize> = BTreeMap::new();
     for &id in ids {

@@ -53,7 +53,7 @@ fn obj_objects_by_group_and_by_material() {
     let dir = tempfile::tempdir().unwrap();
     write_obj_scan(dir.path());
     assert_eq!(ingest::scan::detect_format(dir.path()).unwrap(), ScanFormat::Obj);
-    let scan = load_scan(dir.path(), ScanFormat::Auto, GroupBy::ObjGroup).unwrap();
+    let scan = load_scan(dir.path(), ScanFormat::Auto, GroupBy::OBJ_GROUP).unwrap();
     // Quad → 2 triangles; the degenerate `f 9 9 10` is dropped.
     assert_eq!(scan.mesh.triangles.len(), 2 + 3 + 1);
     let by_label: Vec<(Option<&str>, usize)> = scan.objects.iter().map(|o| (o.label.as_deref(), o.triangles)).collect();
@@ -62,7 +62,7 @@ fn obj_objects_by_group_and_by_material() {
     let unseen = objects_seen_by_no_camera(&scan);
     assert_eq!(unseen.iter().map(|&o| scan.objects[o].label.as_deref()).collect::<Vec<_>>(), vec![Some("hidden")]);
 
-    let by_mat = load_scan(dir.path(), ScanFormat::Obj, GroupBy::ObjMaterial).unwrap();
+    let by_mat = load_scan(dir.path(), ScanFormat::Obj, GroupBy::OBJ_MATERIAL).unwrap();
     let mats: Vec<(Option<&str>, usize)> = by_mat.objects.iter().map(|o| (o.label.as_deref(), o.triangles)).collect();
     assert_eq!(mats, vec![(Some("white"), 3), (Some("red"), 3)]);
 }
@@ -71,7 +71,7 @@ fn obj_objects_by_group_and_by_material() {
 fn obj_nan_vertex_is_an_error() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("bad.obj"), "v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n").unwrap();
-    let err = load_scan(dir.path(), ScanFormat::Obj, GroupBy::ObjGroup).unwrap_err();
+    let err = load_scan(dir.path(), ScanFormat::Obj, GroupBy::OBJ_GROUP).unwrap_err();
     assert_mentions(&err, &["bad.obj", "vertex 2", "not finite"]);
 }
 
@@ -79,7 +79,7 @@ fn obj_nan_vertex_is_an_error() {
 fn obj_face_index_out_of_range_is_an_error() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("bad.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n").unwrap();
-    let err = load_scan(dir.path(), ScanFormat::Obj, GroupBy::ObjGroup).unwrap_err();
+    let err = load_scan(dir.path(), ScanFormat::Obj, GroupBy::OBJ_GROUP).unwrap_err();
     assert_mentions(&err, &["bad.obj"]);
 }
 
@@ -119,7 +119,7 @@ fn mitsuba_cornell_box_meshes_load_as_objects() {
         f.sort();
         f
     };
-    let scan = load_scan(&meshes, ScanFormat::Obj, GroupBy::ObjGroup).unwrap();
+    let scan = load_scan(&meshes, ScanFormat::Obj, GroupBy::OBJ_GROUP).unwrap();
     // One object per file (these files have no o/g lines), named after the file.
     assert_eq!(scan.objects.len(), files.len());
     let expected: usize = files.iter().map(|f| fan_triangles(&std::fs::read_to_string(f).unwrap())).sum();
@@ -162,7 +162,7 @@ fn bitterli_staircase_meshes_load_with_every_face() {
         assert_eq!(n, fan_triangles(&std::fs::read_to_string(f).unwrap()), "{stem}");
         assert_eq!(labeled.segment_labels[&(k as i32)], stem);
     }
-    let scan = load_scan(&models, ScanFormat::Obj, GroupBy::ObjGroup).unwrap();
+    let scan = load_scan(&models, ScanFormat::Obj, GroupBy::OBJ_GROUP).unwrap();
     assert!(scan.mesh.triangles.len() <= expected);
     assert!(scan.mesh.positions.iter().all(|p| p.is_finite()));
 }

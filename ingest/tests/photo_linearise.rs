@@ -5,8 +5,8 @@ use std::path::Path;
 
 use glam::DMat4;
 use ingest::camera::{Camera, Distortion, Intrinsics};
-use ingest::photo::linearise::{linear_to_srgb, srgb_to_linear};
 use ingest::photo::{LinearImage, PhotoOptions, ResponseCurve, prepare_view, write_exr};
+use ingest::srgb::{decode as srgb_to_linear, encode as linear_to_srgb};
 
 fn pinhole(width: u32, height: u32) -> Camera {
     Camera {

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use ingest::{GroupBy, ScanFormat};
 use tracer::EmissionProfile;
 
 use optim::fit::ObjectFitSettings;
@@ -58,22 +59,6 @@ pub struct Config {
     pub export: ExportConfig,
 }
 
-/// Scan formats `ingest` reads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ScanFormat {
-    /// Detect from the directory layout.
-    #[default]
-    Auto,
-    /// `house_segmentations/` + `undistorted_camera_parameters/*.conf` + `undistorted_color_images/`.
-    Matterport,
-    /// Matterport's raw distorted captures (`matterport_camera_*`, `matterport_color_images/`).
-    MatterportRaw,
-    Obj,
-    Colmap,
-    Transforms,
-}
-
 /// `[scan]`: where the scan is and how its faces are grouped into objects.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -85,19 +70,6 @@ pub struct ScanConfig {
     /// Which per-face id column defines objects.
     #[serde(default)]
     pub group_by: GroupBy,
-}
-
-/// Which per-face id column defines objects (mirrors `ingest::scan::GroupBy`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum GroupBy {
-    /// Matterport `segment_id` (object instances); OBJ `o`/`g` groups.
-    #[default]
-    Segment,
-    /// Matterport `category_id`.
-    Category,
-    /// Matterport `material_id` (over-segments); OBJ `usemtl` materials.
-    Material,
 }
 
 /// `[output]`: where the run directory goes.

@@ -7,10 +7,10 @@ use std::str::FromStr;
 
 use serde::Serialize;
 
-use crate::config::{
-    Config, ConfigError, ExportConfig, GroupBy, ImagesConfig, ScanFormat, TracerConfig, TriangleConfig,
-};
-use optim::fit::ObjectFitSettings;
+use ingest::{GroupBy, ScanFormat};
+
+use crate::config::{Config, ConfigError, ExportConfig, ImagesConfig, TracerConfig, TriangleConfig};
+use optim::fit::{AdamLoss, ObjectFitSettings};
 
 /// The pipeline's stages, in execution order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
@@ -115,20 +115,7 @@ impl Plan {
         if output == scan_path || scan_path.starts_with(&output) {
             return Err(key_err("output.path", format!("{} would contain the scan directory", output.display())));
         }
-        if config.images.downscale == 0 {
-            return Err(key_err("images.downscale", "must be at least 1".to_owned()));
-        }
-        if config.images.every == 0 {
-            return Err(key_err("images.every", "must be at least 1".to_owned()));
-        }
-        // Bounds the tracer's per-vertex random-number dimensions (it refuses more).
-        const MAX_DEPTH_LIMIT: u32 = 1024;
-        if config.tracer.max_depth > MAX_DEPTH_LIMIT {
-            return Err(key_err("tracer.max_depth", format!("must be at most {MAX_DEPTH_LIMIT}")));
-        }
-        if config.export.report_spp == 0 {
-            return Err(key_err("export.report_spp", "must be at least 1".to_owned()));
-        }
+        validate(&config).map_err(|e| key_err(e.key, e.message))?;
         Ok(Self {
             config_path,
             scan: ScanPlan { path: scan_path, format: config.scan.format, group_by: config.scan.group_by },
@@ -167,6 +154,90 @@ impl Plan {
             StageId::Export => json!({"artefacts": 1, "export": self.export, "tracer": self.tracer}),
         }
     }
+}
+
+/// A value that breaks its key's rule: the dotted key and a message that states the rule and the value
+/// (`must be > 0, got -1`).
+#[derive(Debug, Clone, PartialEq)]
+struct Invalid {
+    key: &'static str,
+    message: String,
+}
+
+/// `Ok` when `ok`, else the rule `rule` broken by `value` at `key`.
+fn rule(ok: bool, key: &'static str, rule: &str, value: impl fmt::Display) -> Result<(), Invalid> {
+    if ok { Ok(()) } else { Err(Invalid { key, message: format!("must be {rule}, got {value}") }) }
+}
+
+fn at_least_one(key: &'static str, v: u32) -> Result<(), Invalid> {
+    rule(v >= 1, key, ">= 1", v)
+}
+
+fn positive(key: &'static str, v: f64) -> Result<(), Invalid> {
+    rule(v.is_finite() && v > 0.0, key, "finite and > 0", v)
+}
+
+fn non_negative(key: &'static str, v: f64) -> Result<(), Invalid> {
+    rule(v.is_finite() && v >= 0.0, key, "finite and >= 0", v)
+}
+
+/// Largest `tracer.max_depth` the tracer accepts (`tracer::Renderer::new` refuses more; the tracer keeps its
+/// constant private, so the value is repeated here to report it before any stage runs).
+const TRACER_MAX_DEPTH: u32 = 1024;
+
+/// Every value rule of the config, table by table, in the order of `configs/README.md`. Enumerations
+/// (`scan.format`, `scan.group_by`, `tracer.emission_profile`, `object.loss`, `quality`) and types are checked
+/// by deserialisation; paths by [`Plan::resolve`]. Keys without a rule here take every value of their type.
+fn validate(c: &Config) -> Result<(), Invalid> {
+    let i = &c.images;
+    at_least_one("images.downscale", i.downscale)?;
+    at_least_one("images.every", i.every)?;
+    for name in &i.cameras {
+        rule(!name.trim().is_empty(), "images.cameras", "a list of view names (non-empty)", format!("{name:?}"))?;
+    }
+
+    let t = &c.tracer;
+    rule(t.max_depth <= TRACER_MAX_DEPTH, "tracer.max_depth", &format!("<= {TRACER_MAX_DEPTH}"), t.max_depth)?;
+
+    let o = &c.object;
+    at_least_one("object.batch_pixels", o.batch_pixels)?;
+    positive("object.lr", o.lr)?;
+    rule(
+        o.lr_final_fraction > 0.0 && o.lr_final_fraction <= 1.0,
+        "object.lr_final_fraction",
+        "in (0, 1]",
+        o.lr_final_fraction,
+    )?;
+    at_least_one("object.n_value", o.n_value)?;
+    at_least_one("object.n_grad", o.n_grad)?;
+    if o.loss == AdamLoss::Huber {
+        positive("object.huber_delta", o.huber_delta)?;
+    } else {
+        non_negative("object.huber_delta", o.huber_delta)?;
+    }
+    non_negative("object.emission_l1", o.emission_l1)?;
+    at_least_one("object.solve_pixels", o.solve_pixels)?;
+    at_least_one("object.solve_spp", o.solve_spp)?;
+    rule((0.0..0.5).contains(&o.holdout_fraction), "object.holdout_fraction", "in [0, 0.5)", o.holdout_fraction)?;
+    at_least_one("object.holdout_spp", o.holdout_spp)?;
+
+    let g = &c.triangle;
+    at_least_one("triangle.spp", g.spp)?;
+    positive("triangle.adam_lr", g.adam_lr)?;
+    non_negative("triangle.smoothness", g.smoothness)?;
+    rule(
+        g.split_significance > 0.0 && g.split_significance < 1.0,
+        "triangle.split_significance",
+        "in (0, 1)",
+        g.split_significance,
+    )?;
+    non_negative("triangle.split_contrast", g.split_contrast)?;
+    at_least_one("triangle.max_triangles", g.max_triangles)?;
+
+    let e = &c.export;
+    at_least_one("export.report_spp", e.report_spp)?;
+    at_least_one("export.report_views", e.report_views)?;
+    Ok(())
 }
 
 /// `p` made absolute against `base` and lexically normalised (`.` and `..` removed), without touching the

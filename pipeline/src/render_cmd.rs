@@ -3,21 +3,20 @@
 //! `scan` line of a Matterport-style `.conf`, writing `DIR/<color file stem>.exr` (linear radiance, RGB).
 //! Works as soon as `ingest` has run (with `--materials` before the fit has).
 //!
-//! The `.conf` is read with Matterport's semantics (`intrinsics_matrix fx 0 cx 0 fy cy 0 0 1` applies to the
-//! following `scan <depth> <color> <16 camera-to-world values, row-major>` lines; OpenGL camera). The listed
+//! The `.conf` is read by ingest's Matterport reader (`ingest::matterport::read_conf`: `intrinsics_matrix`
+//! applies to the following `scan` lines; camera-to-world, OpenGL camera). The listed
 //! colour images need not exist (novel views): the image size comes from `--width/--height`, else from the
 //! listed image when it exists (under `color_directory`, relative to the directory above the `.conf`'s, as in
 //! the Matterport layout, or beside the `.conf`), else it is an error naming the line.
 
-use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
-use glam::{Affine3A, DMat4};
+use glam::Affine3A;
 
+use crate::artefacts::ingest::Ingested;
 use crate::atomic_file::write_atomic;
 use crate::cli::RenderArgs;
 use crate::materials::MaterialsFile;
-use crate::stages::ingest::Ingested;
 
 /// Errors of `pipeline render`.
 #[derive(Debug, thiserror::Error)]
@@ -30,8 +29,10 @@ pub enum RenderError {
     },
     #[error("{path}:{line}: {message}", path = .path.display())]
     Conf { path: PathBuf, line: usize, message: String },
+    #[error(transparent)]
+    Scan(ingest::IngestError),
     #[error("{0}")]
-    Stage(#[from] crate::stages::StageError),
+    Stage(#[from] crate::stage_contract::StageError),
     #[error(transparent)]
     Materials(#[from] crate::materials::MaterialsError),
     #[error("tracer: {0}")]
@@ -59,94 +60,52 @@ fn image_size(path: &Path) -> Option<(u32, u32)> {
     image::image_dimensions(path).ok()
 }
 
-/// Parses a Matterport-style `.conf`. `size` overrides the image size of every camera.
+/// Reads a Matterport-style `.conf` with ingest's reader ([`ingest::matterport::read_conf`]) and gives each
+/// `scan` line an image size: `size` when given, else the listed colour image's. Errors name the line.
 pub fn parse_conf(path: &Path, size: Option<(u32, u32)>) -> Result<Vec<ConfCamera>, RenderError> {
-    let text = std::fs::read_to_string(path).map_err(|source| RenderError::Io { path: path.to_path_buf(), source })?;
+    let conf = ingest::matterport::read_conf(path).map_err(|e| match e {
+        ingest::IngestError::Line { path, line, message } => RenderError::Conf { path, line, message },
+        other => RenderError::Scan(other),
+    })?;
     let conf_dir = path.parent().unwrap_or(Path::new("."));
     let scan_dir = conf_dir.parent().unwrap_or(conf_dir);
-    let mut color_dir = PathBuf::from("undistorted_color_images");
-    let mut k: Option<[f64; 4]> = None;
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let err = |message: String| RenderError::Conf { path: path.to_path_buf(), line: i + 1, message };
-        let tokens: Vec<&str> = line.split_ascii_whitespace().collect();
-        let Some((&key, args)) = tokens.split_first() else { continue };
-        let floats = |vals: &[&str]| -> Result<Vec<f64>, RenderError> {
-            vals.iter()
-                .map(|t| {
-                    t.parse::<f64>()
-                        .ok()
-                        .filter(|v| v.is_finite())
-                        .ok_or_else(|| err(format!("{t:?} is not a finite number")))
-                })
-                .collect()
+    let mut out = Vec::with_capacity(conf.scans.len());
+    for s in &conf.scans {
+        let err = |message: String| RenderError::Conf { path: path.to_path_buf(), line: s.line, message };
+        let color_dir = PathBuf::from(s.color_directory.as_deref().unwrap_or("undistorted_color_images"));
+        let listed = Path::new(&s.color_file);
+        let name = listed.file_stem().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let (width, height) = match size {
+            Some(sz) => sz,
+            None => [scan_dir.join(&color_dir).join(listed), conf_dir.join(listed)]
+                .iter()
+                .find_map(|p| image_size(p))
+                .ok_or_else(|| {
+                    err(format!("image {} not found: give the size with --width and --height", listed.display()))
+                })?,
         };
-        match key {
-            "color_directory" if args.len() == 1 => color_dir = PathBuf::from(args[0]),
-            "intrinsics_matrix" => {
-                if args.len() != 9 {
-                    return Err(err(format!("intrinsics_matrix has {} values, expected 9", args.len())));
-                }
-                let m = floats(args)?;
-                if m[0] <= 0.0 || m[4] <= 0.0 {
-                    return Err(err("fx and fy must be positive".into()));
-                }
-                k = Some([m[0], m[4], m[2], m[5]]);
-            }
-            "scan" => {
-                if args.len() != 18 {
-                    return Err(err(format!("scan line has {} values, expected 18", args.len())));
-                }
-                let [fx, fy, cx, cy] = k.ok_or_else(|| err("scan line before any intrinsics_matrix".into()))?;
-                let m: [f64; 16] = floats(&args[2..])?.try_into().expect("16 values checked above");
-                let pose: DMat4 = ingest::pose::from_row_major(&m);
-                ingest::pose::check_rigid(&pose).map_err(err)?;
-                let listed = Path::new(args[1]);
-                let name = listed.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-                let (width, height) = match size {
-                    Some(s) => s,
-                    None => [scan_dir.join(&color_dir).join(listed), conf_dir.join(listed)]
-                        .iter()
-                        .find_map(|p| image_size(p))
-                        .ok_or_else(|| {
-                            err(format!(
-                                "image {} not found: give the size with --width and --height",
-                                listed.display()
-                            ))
-                        })?,
-                };
-                let camera = tracer::Camera {
-                    width,
-                    height,
-                    fx: fx as f32,
-                    fy: fy as f32,
-                    cx: cx as f32,
-                    cy: cy as f32,
-                    cam_to_world: Affine3A::from_mat4(pose.as_mat4()),
-                };
-                out.push(ConfCamera { name, camera });
-            }
-            _ => {}
-        }
+        let k = s.intrinsics;
+        let camera = tracer::Camera {
+            width,
+            height,
+            fx: k.fx as f32,
+            fy: k.fy as f32,
+            cx: k.cx as f32,
+            cy: k.cy as f32,
+            cam_to_world: Affine3A::from_mat4(s.cam_to_world.as_mat4()),
+        };
+        out.push(ConfCamera { name, camera });
     }
     Ok(out)
 }
 
 /// Linear RGB EXR bytes (32-bit float R, G, B; lossless).
 pub fn encode_rgb_exr(path: &Path, width: u32, height: u32, rgb: &[glam::Vec3]) -> Result<Vec<u8>, RenderError> {
-    use exr::prelude::*;
     let w = width as usize;
-    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
-        let c = rgb[p.y() * w + p.x()];
-        (c.x, c.y, c.z)
-    });
-    let image = Image::from_channels((w, height as usize), channels);
-    let mut out = Cursor::new(Vec::new());
-    image
-        .write()
-        .to_buffered(&mut out)
-        .map_err(|e| RenderError::Exr { path: path.to_path_buf(), message: e.to_string() })?;
-    Ok(out.into_inner())
+    ingest::photo::exr::encode_rgb(width, height, ingest::photo::exr::Compression::Fast, |x, y| {
+        rgb[y * w + x].to_array()
+    })
+    .map_err(|e| RenderError::Exr { path: path.to_path_buf(), message: e.to_string() })
 }
 
 /// Runs `pipeline render`.

@@ -10,29 +10,7 @@ use std::path::PathBuf;
 
 use crate::manifest::{self, Freshness, Manifest, ManifestError};
 use crate::plan::{Plan, StageId};
-use crate::stages::StageError;
-
-/// What a stage needs to know about its own run.
-#[derive(Debug)]
-pub struct StageContext<'a> {
-    pub plan: &'a Plan,
-    pub stage: StageId,
-    /// `output.path/<stage>/` (exists when the stage is called).
-    pub dir: PathBuf,
-    /// Hash of the stage's config section.
-    pub config_sha256: String,
-    /// Hash of the stage's inputs; together with `config_sha256` it identifies the computation (the object
-    /// stage only resumes a checkpoint with the same pair).
-    pub inputs_sha256: String,
-}
-
-/// Runs stages. The binary's implementation is [`crate::stages::Stages`]; tests may use their own.
-pub trait StageExecutor {
-    /// False for a stage whose issue has not landed: it is skipped with a message and writes no manifest.
-    fn is_implemented(&self, stage: StageId) -> bool;
-    /// Runs a stage; returns its output files relative to `plan.output` (hashed into the manifest).
-    fn run(&mut self, ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError>;
-}
+use crate::stage_contract::{StageContext, StageError, StageExecutor};
 
 /// `--from` / `--until`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -86,3 +86,38 @@ fn unknown_stage_name_is_a_usage_error() {
     assert_eq!(o.code, Some(2), "{}", o.stderr);
     assert!(o.stderr.contains("fitting"), "{}", o.stderr);
 }
+
+/// One bad value per table, each given by `--set` on a config that is otherwise valid: exit code 2, the key
+/// named, and no stage has run (the output directory holds no `ingest/`).
+#[test]
+fn one_bad_value_per_table_exits_2_before_ingest() {
+    let cases: [(&str, &str); 13] = [
+        ("quality=\"ultra\"", "quality"),
+        ("scan.group_by=\"obj_group\"", "scan.group_by"),
+        ("scan.format=\"ply\"", "scan.format"),
+        ("output.path=\"scan\"", "output.path"),
+        ("images.every=0", "images.every"),
+        ("tracer.max_depth=5000", "tracer.max_depth"),
+        ("object.lr=-1", "object.lr"),
+        ("object.holdout_fraction=0.7", "object.holdout_fraction"),
+        ("object.huber_delta=nan", "object.huber_delta"),
+        ("triangle.split_significance=1.5", "triangle.split_significance"),
+        ("triangle.adam_lr=0", "triangle.adam_lr"),
+        ("export.report_views=0", "export.report_views"),
+        ("export.report_spp=0", "export.report_spp"),
+    ];
+    for (set, key) in cases {
+        let d = scan_dir();
+        let o = run(d.path(), "[scan]\npath = \"scan\"\n[output]\npath = \"out\"\n", &["--set", set]);
+        assert_config_error(&o, key);
+        assert!(!d.path().join("out/ingest").exists(), "{set}: ingest ran");
+        assert!(!d.path().join("scan/ingest").exists(), "{set}: ingest ran");
+    }
+}
+
+#[test]
+fn bad_value_message_states_the_rule_and_the_value() {
+    let d = scan_dir();
+    let o = run(d.path(), "[scan]\npath = \"scan\"\n", &["--set", "object.lr=-1"]);
+    assert_config_error(&o, "`object.lr`: must be finite and > 0, got -1");
+}

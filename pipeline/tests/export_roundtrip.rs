@@ -6,7 +6,8 @@
 use std::path::Path;
 
 use glam::{Vec2, Vec3};
-use pipeline::export::{self, ExportInput, ExportOptions, srgb};
+use ingest::srgb;
+use pipeline::export::{self, ExportInput, ExportOptions};
 use serde_json::Value;
 use tracer::Material;
 

@@ -41,7 +41,7 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     eprintln!("pipeline run took {:.1} s\n{err}", started.elapsed().as_secs_f64());
     let out = dir.path().join("out");
 
-    let ingested = pipeline::stages::ingest::Ingested::read(&out).unwrap();
+    let ingested = pipeline::artefacts::ingest::Ingested::read(&out).unwrap();
     let ids: Vec<i64> = ingested.objects.iter().map(|o| o.id).collect();
     let exported = ingest::ply::read_ply(&out.join("export/mesh.ply")).unwrap().mesh;
     let segment = exported.face_ids("segment_id").unwrap();
@@ -87,7 +87,7 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     // 17.53, 14.84; the light-change gate finds that significant, p = 9.4e-6). Measured: 20.45, 18.32, 15.08,
     // max 2.2 %. No other
     // object emits (the object stage's model decision is kept).
-    let state = pipeline::stages::triangle::read_result(&out).unwrap().expect("triangle/result.json");
+    let state = pipeline::artefacts::triangle::read_result(&out).unwrap().expect("triangle/result.json");
     for (o, id) in ids.iter().enumerate() {
         let truth = desc.objects.iter().find(|d| i64::from(d.id) == *id).unwrap();
         let (got, want) = (state.emission[o], Vec3::from_array(truth.emission));

@@ -4,7 +4,6 @@
 //! (temporary file in the same directory, fsync, rename), EXR first, so a manifest entry only exists for a
 //! complete image.
 
-use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -54,7 +53,6 @@ pub fn cached_paths(dir: &Path, name: &str) -> (PathBuf, PathBuf) {
 
 /// Encodes `img` as an EXR (R, G, B, mask; 32-bit float, lossless compression).
 pub fn encode_exr(path: &Path, img: &LinearImage) -> Result<Vec<u8>, PhotoError> {
-    use exr::prelude::*;
     let n = img.pixel_count();
     if img.rgb.len() != 3 * n || img.mask.len() != n {
         return Err(PhotoError::Manifest {
@@ -62,25 +60,10 @@ pub fn encode_exr(path: &Path, img: &LinearImage) -> Result<Vec<u8>, PhotoError>
             message: "image buffers do not match its size".into(),
         });
     }
-    let channel = |c: usize| img.rgb.iter().skip(c).step_by(3).copied().collect::<Vec<f32>>();
-    let mask: Vec<f32> = img.mask.iter().map(|&m| if m != 0 { 1.0 } else { 0.0 }).collect();
-    let channels = AnyChannels::sort(
-        vec![
-            AnyChannel::new("R", FlatSamples::F32(channel(0))),
-            AnyChannel::new("G", FlatSamples::F32(channel(1))),
-            AnyChannel::new("B", FlatSamples::F32(channel(2))),
-            AnyChannel::new("mask", FlatSamples::F32(mask)),
-        ]
-        .into(),
-    );
-    let size = (img.width as usize, img.height as usize);
-    let image = Image::from_layer(Layer::new(size, LayerAttributes::default(), Encoding::FAST_LOSSLESS, channels));
-    let mut out = Cursor::new(Vec::new());
-    image.write().to_buffered(&mut out).map_err(|e| PhotoError::Write {
+    super::exr::encode_rgb_mask(img.width, img.height, &img.rgb, &img.mask).map_err(|e| PhotoError::Write {
         path: path.to_path_buf(),
         source: crate::error::IngestError::format(path, e.to_string()),
-    })?;
-    Ok(out.into_inner())
+    })
 }
 
 /// Writes `img` to `path` as an EXR (R, G, B, mask), atomically.

@@ -1,24 +1,11 @@
-//! Display-referred code values → linear radiance: the sRGB transfer curve (default) or a recovered camera
+//! Display-referred code values → linear radiance: the sRGB transfer curve ([`crate::srgb`], default) or a recovered camera
 //! response curve, divided by the exposure time when known; saturated pixels are masked.
 
 use super::image_io::DisplayImage;
 use super::mask::is_saturated;
 use super::response::ResponseCurve;
 use super::{LinearImage, OpError};
-
-/// The sRGB electro-optical transfer function (IEC 61966-2-1): encoded value in [0, 1] → linear in [0, 1].
-#[must_use]
-pub fn srgb_to_linear(v: f32) -> f32 {
-    // 0.04045 / 12.92 / 0.055 / 1.055 / 2.4 are the constants of the standard.
-    if v <= 0.04045 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
-}
-
-/// Inverse of [`srgb_to_linear`]: linear in [0, 1] → encoded value in [0, 1].
-#[must_use]
-pub fn linear_to_srgb(l: f32) -> f32 {
-    // 0.0031308 = 0.04045 / 12.92, the linear-segment breakpoint of the standard.
-    if l <= 0.003_130_8 { l * 12.92 } else { 1.055 * l.powf(1.0 / 2.4) - 0.055 }
-}
+use crate::srgb::decode as srgb_to_linear;
 
 /// Linearises a display-referred image. With `response`, code value z of channel c becomes `response(c, z)`
 /// (16-bit codes are mapped onto the curve's 0..255 axis and interpolated); without, the sRGB curve. Values
@@ -59,18 +46,4 @@ pub fn linearise(
         mask.push(u8::from(m != 0 && !is_saturated(codes, img.max_code)));
     }
     LinearImage::new(img.width, img.height, rgb, mask)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn srgb_curve_is_continuous_at_the_breakpoint() {
-        let below = srgb_to_linear(0.04045);
-        let above = srgb_to_linear(0.040_450_1);
-        assert!((below - above).abs() < 1e-6, "{below} vs {above}");
-        assert_eq!(srgb_to_linear(0.0), 0.0);
-        assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
-    }
 }

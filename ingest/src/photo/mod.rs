@@ -10,12 +10,14 @@
 //! 3. undistort ([`undistort`]) with OpenCV to a pinhole camera whose intrinsics replace the original ones,
 //!    masking pixels outside the undistorted field of view;
 //! 4. optionally area-downscale by an integer factor ([`downscale`]);
-//! 5. callers cache the result ([`cache`]): `<name>.exr` (R, G, B, mask) + `<name>.json` (camera).
+//! 5. callers cache the result ([`cache`]): `<name>.exr` (R, G, B, mask; written by [`exr`], the workspace's one
+//!    EXR writer) + `<name>.json` (camera).
 //!
 //! Pixel convention: as in [`crate::camera`], pixel centres at integer coordinates.
 
 pub mod cache;
 pub mod downscale;
+pub mod exr;
 pub mod image_io;
 pub mod linearise;
 pub mod mask;

@@ -12,8 +12,8 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use super::svg::{self, Panel, Series};
 use super::{BenchError, FitSetup, tradeoff};
+use crate::svg::{self, Panel, Series};
 
 /// What to run.
 #[derive(Debug, Clone)]

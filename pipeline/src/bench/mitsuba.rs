@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use super::svg::{self, Panel, Series};
 use super::{BenchError, FitSetup, tradeoff};
+use crate::svg::{self, Panel, Series};
 
 /// What to run.
 #[derive(Debug, Clone)]

@@ -20,7 +20,6 @@ pub mod metrics;
 pub mod mitsuba;
 pub mod process_clock;
 pub mod scenes;
-pub mod svg;
 pub mod tradeoff;
 
 use std::path::{Path, PathBuf};

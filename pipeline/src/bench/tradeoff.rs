@@ -13,9 +13,9 @@ use std::path::{Path, PathBuf};
 
 use super::metrics::{self, Accuracy};
 use super::scenes::{self, BenchScene};
-use super::svg::{self, Panel, Series};
 use super::{BenchError, FitSetup};
 use crate::config::TriangleConfig;
+use crate::svg::{self, Panel, Series};
 use optim::fit::ObjectFitSettings;
 
 /// Paths per pixel of the re-renders of the held-back views: their own noise (relative L1 ≈ 1–2 % on the

@@ -18,12 +18,13 @@
 //! UVs follow glTF: `u` to the right, `v` down from the first image row, both normalised by `W` and `H`
 //! (exact in f32: powers of two). OBJ's `vt` uses `v` up, so the OBJ writer stores `1 − v`.
 
-use std::io::Cursor;
 use std::path::Path;
 
 use glam::{Vec2, Vec3};
 
-use super::{ExportError, srgb};
+use ingest::srgb;
+
+use super::ExportError;
 
 /// Where each triangle's cell lies in the atlas.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -151,21 +152,13 @@ pub fn metallic_roughness_png(
 
 /// `albedo.exr`: per-triangle linear albedo, 32-bit float R, G, B (unclamped, ZIP-compressed), unused cells 0.
 pub fn albedo_exr(path: &Path, layout: &AtlasLayout, albedo: &[Vec3]) -> Result<Vec<u8>, ExportError> {
-    use exr::prelude::*;
     let l = *layout;
-    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+    // Small (ZIP): constant cells compress to a small fraction of the raw 12 bytes per texel; lossless.
+    ingest::photo::exr::encode_rgb(l.width, l.height, ingest::photo::exr::Compression::Small, |x, y| {
         // Texel coordinates are below width/height, which fit in u32.
-        let c = l.triangle_at(p.x() as u32, p.y() as u32).map_or(Vec3::ZERO, |t| albedo[t as usize]);
-        (c.x, c.y, c.z)
-    });
-    // ZIP: constant cells compress to a small fraction of the raw 12 bytes per texel; lossless.
-    let image = Image::from_encoded_channels((l.width as usize, l.height as usize), Encoding::SMALL_LOSSLESS, channels);
-    let mut out = Cursor::new(Vec::new());
-    image
-        .write()
-        .to_buffered(&mut out)
-        .map_err(|e| ExportError::Encode { path: path.to_path_buf(), message: e.to_string() })?;
-    Ok(out.into_inner())
+        l.triangle_at(x as u32, y as u32).map_or(Vec3::ZERO, |t| albedo[t as usize]).to_array()
+    })
+    .map_err(|e| ExportError::Encode { path: path.to_path_buf(), message: e.to_string() })
 }
 
 #[cfg(test)]

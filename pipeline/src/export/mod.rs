@@ -3,7 +3,7 @@
 //! `scene.glb` (glTF 2.0, PBR metallic-roughness).
 //!
 //! Code map: [`ply`] (face columns), [`atlas`] (layout rule, UVs, images), [`obj_atlas`] (OBJ/MTL text),
-//! [`gltf`] (GLB), [`srgb`] (display encoding). [`write_all`] validates the input once, then writes every
+//! [`gltf`] (GLB); display encoding with `ingest::srgb`. [`write_all`] validates the input once, then writes every
 //! file atomically (ingest's [`ingest::write_atomic`]: a reader never sees a torn file).
 //!
 //! Values: albedo and emission are linear (emission is radiance, unbounded); 8-bit encodings (PNG, PLY
@@ -13,7 +13,6 @@ pub mod atlas;
 pub mod gltf;
 pub mod obj_atlas;
 pub mod ply;
-pub mod srgb;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

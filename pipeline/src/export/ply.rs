@@ -7,7 +7,9 @@
 
 use ingest::ply::{FaceProperty, FaceValues, PlyMesh};
 
-use super::{ExportInput, srgb};
+use ingest::srgb;
+
+use super::ExportInput;
 
 /// Names of the face columns after `vertex_indices`, in file order.
 pub const FACE_COLUMNS: [&str; 13] = [

@@ -15,14 +15,14 @@
 
 use std::path::PathBuf;
 
-use super::StageError;
-use super::ingest::Ingested;
-use super::object_result::{read_history, read_result};
-use super::preprocess::Prepared;
+use crate::artefacts::ingest::Ingested;
+use crate::artefacts::object::{MATERIALS_FILE, read_history, read_result};
+use crate::artefacts::preprocess::Prepared;
+use crate::artefacts::triangle;
 use crate::atomic_file::{write_atomic, write_json_atomic};
 use crate::config::profile_name;
 use crate::report::{ReportData, RgbImage, Series, ViewPanel};
-use crate::runner::StageContext;
+use crate::stage_contract::{StageContext, StageError};
 
 /// CSV file name inside the stage directory.
 pub const TRAJECTORIES_FILE: &str = "trajectories.csv";
@@ -178,11 +178,11 @@ pub fn export_mesh(run_dir: &std::path::Path) -> Result<Vec<PathBuf>, StageError
     let segment = |o: u32| i32::try_from(ids[o as usize]).unwrap_or(i32::MAX);
     let opts = ExportOptions { z_up: scan_is_z_up(&scene_data.views), ..ExportOptions::default() };
     let dir = run_dir.join("export");
-    let report = match super::triangle::read_result(run_dir)? {
+    let report = match triangle::read_result(run_dir)? {
         Some(st) => {
             if let Some(t) = st.face_object.iter().position(|&o| o as usize >= ids.len()) {
                 return Err(StageError::Artefact {
-                    path: run_dir.join("triangle").join(super::triangle::RESULT_FILE),
+                    path: run_dir.join("triangle").join(triangle::RESULT_FILE),
                     message: format!("triangle {t}: object {} of {}", st.face_object[t], ids.len()),
                 });
             }
@@ -198,7 +198,7 @@ pub fn export_mesh(run_dir: &std::path::Path) -> Result<Vec<PathBuf>, StageError
             write_all(&dir, &input, &opts)?
         }
         None => {
-            let path = run_dir.join("object").join(super::object_result::MATERIALS_FILE);
+            let path = run_dir.join("object").join(MATERIALS_FILE);
             let params = read_result(run_dir)?.params_for(&ids, &path)?;
             let per = expand_per_object(&scene_data.face_object, &ids, &params.materials, &params.emission)?;
             let input = ExportInput {
@@ -232,7 +232,7 @@ fn triangle_section(
     run_dir: &std::path::Path,
     scene_data: &Ingested,
 ) -> Result<Option<crate::report::TriangleSection>, StageError> {
-    let Some(st) = super::triangle::read_result(run_dir)? else { return Ok(None) };
+    let Some(st) = triangle::read_result(run_dir)? else { return Ok(None) };
     let k = scene_data.objects.len();
     let mut before = vec![0usize; k];
     for &o in &scene_data.face_object {
@@ -264,7 +264,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let table = history_table(&history.history, &ids);
     write_atomic(&ctx.dir.join(TRAJECTORIES_FILE), to_csv(&table).as_bytes())?;
 
-    let params = materials.params_for(&ids, &plan.output.join("object").join(super::object_result::MATERIALS_FILE))?;
+    let params = materials.params_for(&ids, &plan.output.join("object").join(MATERIALS_FILE))?;
     let scene = tracer::Scene::new(scene_data.scene_input())?;
     let cameras = prepared.tracer_cameras();
     let settings = plan.tracer.settings();

@@ -13,15 +13,14 @@
 
 use std::path::{Path, PathBuf};
 
-use super::StageError;
-use super::checkpoint;
-use super::ingest::Ingested;
-use super::object_result::{CHECKPOINT_FORMAT, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE};
-use super::preprocess::Prepared;
+use crate::artefacts::checkpoint;
+use crate::artefacts::ingest::Ingested;
+use crate::artefacts::object::{CHECKPOINT_FORMAT, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE};
+use crate::artefacts::preprocess::Prepared;
 use crate::atomic_file::write_json_atomic;
 use crate::config::profile_name;
 use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
-use crate::runner::StageContext;
+use crate::stage_contract::{StageContext, StageError};
 use optim::fit::{FitError, FitInputs, FitState, ObjectDesc};
 
 /// The checkpointed fit state of `dir` if it belongs to this exact computation (same config and inputs hashes).

@@ -11,48 +11,16 @@
 
 use std::path::{Path, PathBuf};
 
-use optim::triangle::{RESULT_FORMAT, RoundInputs, TriangleError, TriangleSettings, TriangleState};
-use serde::{Deserialize, Serialize};
-
-use super::checkpoint;
-use super::ingest::Ingested;
-use super::object_result::{MATERIALS_FILE, read_result as read_object_result};
-use super::preprocess::Prepared;
-use super::{StageError, remove_if_present};
+use crate::artefacts::checkpoint;
+use crate::artefacts::ingest::Ingested;
+use crate::artefacts::object::{MATERIALS_FILE, read_result as read_object_result};
+use crate::artefacts::preprocess::Prepared;
+use crate::artefacts::triangle::{CHECKPOINT_FORMAT, RESULT_FILE, ResultFile};
 use crate::atomic_file::write_json_atomic;
 use crate::config::TriangleConfig;
 use crate::progress::Bar;
-use crate::runner::StageContext;
-
-/// The result's file name.
-pub const RESULT_FILE: &str = "result.json";
-pub use super::checkpoint::CHECKPOINT_FILE;
-/// Format tag of the checkpoint.
-pub const CHECKPOINT_FORMAT: &str = "ipt-triangle-checkpoint/1";
-
-/// `result.json`.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ResultFile {
-    pub format: String,
-    pub state: TriangleState,
-}
-
-/// Reads `run_dir/triangle/result.json`; `Ok(None)` when the stage wrote none (disabled or not run).
-pub fn read_result(run_dir: &Path) -> Result<Option<TriangleState>, StageError> {
-    let path = run_dir.join("triangle").join(RESULT_FILE);
-    let text = match std::fs::read_to_string(&path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(source) => return Err(StageError::Io { path, source }),
-    };
-    let r: ResultFile =
-        serde_json::from_str(&text).map_err(|e| StageError::Artefact { path: path.clone(), message: e.to_string() })?;
-    if r.format != RESULT_FORMAT {
-        return Err(StageError::Artefact { path, message: format!("format `{}` is not `{RESULT_FORMAT}`", r.format) });
-    }
-    Ok(Some(r.state))
-}
+use crate::stage_contract::{StageContext, StageError, remove_if_present};
+use optim::triangle::{RESULT_FORMAT, RoundInputs, TriangleError, TriangleSettings, TriangleState};
 
 fn resumable(dir: &Path, config_sha256: &str, inputs_sha256: &str) -> Option<TriangleState> {
     checkpoint::resumable(dir, "triangle", CHECKPOINT_FORMAT, config_sha256, inputs_sha256)

@@ -118,17 +118,6 @@ pub fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> Option<Affine3A> {
 
 /// A linear RGB image as a single-part 32-bit float EXR file in memory.
 pub fn exr_bytes(path: &Path, width: u32, height: u32, rgb: &[f32]) -> Result<Vec<u8>, SynthError> {
-    use exr::prelude::*;
-    let (w, h) = (width as usize, height as usize);
-    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
-        let i = 3 * (p.y() * w + p.x());
-        (rgb[i], rgb[i + 1], rgb[i + 2])
-    });
-    let image = Image::from_channels((w, h), channels);
-    let mut buf = std::io::Cursor::new(Vec::new());
-    image
-        .write()
-        .to_buffered(&mut buf)
-        .map_err(|e| SynthError::Exr { path: path.to_path_buf(), message: e.to_string() })?;
-    Ok(buf.into_inner())
+    ingest::photo::exr::encode_rgb_interleaved(width, height, ingest::photo::exr::Compression::Fast, rgb)
+        .map_err(|e| SynthError::Exr { path: path.to_path_buf(), message: e.to_string() })
 }

@@ -1,11 +1,11 @@
-//! The `object` stage's artefacts and their readers (see [`super::object`] for what writes them).
+//! The `object` stage's artefacts and their readers (`crate::stages::object` writes them).
 
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::StageError;
 use crate::materials::MaterialsFile;
+use crate::stage_contract::StageError;
 
 pub use super::checkpoint::CHECKPOINT_FILE;
 /// The result's file name (ipt-materials/1).

@@ -1,4 +1,6 @@
-//! A small hand-written SVG plotter: panels of scatter/line series on linear or log axes.
+//! The workspace's SVG plotter (hand-written, no dependencies): [`render`] draws titled panels of scatter/line
+//! series on linear or log axes with decade ticks (the benchmark's figures); [`line_chart`] draws one compact
+//! line chart with the axis extremes as ticks (report.html's loss curves). Both escape text with [`escape`].
 
 use std::fmt::Write as _;
 
@@ -36,7 +38,9 @@ const MARGIN_B: f64 = 44.0;
 /// A qualitative palette (colour-blind safe, Okabe–Ito).
 pub const PALETTE: [&str; 8] = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000", "#F0E442"];
 
-fn escape(s: &str) -> String {
+/// Escapes text for SVG/HTML element content and attribute values.
+#[must_use]
+pub fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
@@ -187,6 +191,87 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
         }
     }
     front
+}
+
+/// One named curve of a [`line_chart`].
+#[derive(Debug, Clone, Copy)]
+pub struct Curve<'a> {
+    pub name: &'a str,
+    pub points: &'a [(f64, f64)],
+}
+
+/// A single SVG line chart of `series` (log10 y axis when every y is positive), as report.html shows loss
+/// curves: a compact layout with the axis extremes as the only ticks.
+#[must_use]
+pub fn line_chart(series: &[Curve<'_>], width: u32, height: u32, x_label: &str, y_label: &str) -> String {
+    const COLOURS: [&str; 6] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf"];
+    let pts: Vec<(f64, f64)> =
+        series.iter().flat_map(|s| s.points.iter().copied()).filter(|p| p.0.is_finite() && p.1.is_finite()).collect();
+    let mut svg = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">"#
+    );
+    if pts.is_empty() {
+        let _ = write!(svg, r#"<text x="10" y="20">no data</text></svg>"#);
+        return svg;
+    }
+    let log = pts.iter().all(|p| p.1 > 0.0);
+    let fy = |y: f64| if log { y.log10() } else { y };
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &(x, y) in &pts {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(fy(y));
+        y1 = y1.max(fy(y));
+    }
+    // Degenerate ranges (one point, constant curve) get a unit span so the mapping stays finite.
+    if x1 <= x0 {
+        x1 = x0 + 1.0;
+    }
+    if y1 <= y0 {
+        y1 = y0 + 1.0;
+    }
+    let (left, right, top, bottom) = (60.0, 10.0, 10.0, 35.0);
+    let (w, h) = (f64::from(width) - left - right, f64::from(height) - top - bottom);
+    let sx = |x: f64| left + (x - x0) / (x1 - x0) * w;
+    let sy = |y: f64| top + (1.0 - (fy(y) - y0) / (y1 - y0)) * h;
+    let _ = write!(
+        svg,
+        r##"<rect x="{left}" y="{top}" width="{w}" height="{h}" fill="none" stroke="#888"/><text x="{}" y="{}" text-anchor="middle">{}</text><text x="12" y="{}" transform="rotate(-90 12 {})" text-anchor="middle">{}{}</text>"##,
+        left + w / 2.0,
+        f64::from(height) - 5.0,
+        escape(x_label),
+        top + h / 2.0,
+        top + h / 2.0,
+        escape(y_label),
+        if log { " (log)" } else { "" }
+    );
+    for (tick, v) in [(y0, y0), (y1, y1)] {
+        let shown = if log { 10f64.powf(v) } else { v };
+        let y = top + (1.0 - (tick - y0) / (y1 - y0)) * h;
+        let _ = write!(svg, r#"<text x="{}" y="{}" text-anchor="end">{shown:.3e}</text>"#, left - 4.0, y + 4.0);
+    }
+    for (tick, anchor) in [(x0, "start"), (x1, "end")] {
+        let _ = write!(svg, r#"<text x="{}" y="{}" text-anchor="{anchor}">{tick}</text>"#, sx(tick), top + h + 14.0);
+    }
+    for (i, s) in series.iter().enumerate() {
+        let colour = COLOURS[i % COLOURS.len()];
+        let path: Vec<String> = s
+            .points
+            .iter()
+            .filter(|p| p.0.is_finite() && p.1.is_finite() && (!log || p.1 > 0.0))
+            .map(|&(x, y)| format!("{:.1},{:.1}", sx(x), sy(y)))
+            .collect();
+        let _ = write!(
+            svg,
+            r#"<polyline fill="none" stroke="{colour}" stroke-width="1.5" points="{}"/><text x="{}" y="{}" fill="{colour}">{}</text>"#,
+            path.join(" "),
+            left + 8.0,
+            top + 14.0 + 13.0 * i as f64,
+            escape(s.name)
+        );
+    }
+    svg.push_str("</svg>");
+    svg
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
-//! The sRGB transfer function (IEC 61966-2-1) and 8-bit quantisation, for the viewer-facing encodings
-//! (PLY `red green blue`, `albedo.png`, the glTF base-colour texture). Linear values are the physics; these
-//! are display encodings only.
+//! The sRGB transfer function (IEC 61966-2-1) and 8-bit quantisation: the one home of the curve in the
+//! workspace. `ingest` decodes display-referred photos with it ([`crate::photo::linearise`]); `pipeline`
+//! encodes its viewer-facing outputs with it (PLY `red green blue`, `albedo.png`, the glTF base-colour texture,
+//! the images of report.html). Linear values are the physics; the encoded ones are for display only.
 
 /// Linear [0, 1] → sRGB-encoded [0, 1]; input is clamped to [0, 1] first (8-bit encodings cannot hold more).
 #[must_use]
@@ -49,5 +50,15 @@ mod tests {
         assert_eq!(linear_to_srgb8(-1.0), 0);
         // The two segments meet continuously.
         assert!((encode(0.003_130_8) - (1.055 * 0.003_130_8_f32.powf(1.0 / 2.4) - 0.055)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn srgb_curve_is_continuous_at_the_breakpoint() {
+        let srgb_to_linear = decode;
+        let below = srgb_to_linear(0.04045);
+        let above = srgb_to_linear(0.040_450_1);
+        assert!((below - above).abs() < 1e-6, "{below} vs {above}");
+        assert_eq!(srgb_to_linear(0.0), 0.0);
+        assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
     }
 }

@@ -6,9 +6,8 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
-use super::StageError;
 use crate::atomic_file::{AtomicWriteError, write_json_atomic};
-use crate::runner::StageContext;
+use crate::stage_contract::{StageContext, StageError, remove_if_present};
 
 /// The checkpoint's file name inside the stage directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
@@ -62,5 +61,5 @@ pub fn resumable<S: DeserializeOwned>(
 
 /// Removes the checkpoint of `dir`, if any: called once the stage's results are on disk.
 pub fn remove(dir: &Path) -> Result<(), StageError> {
-    super::remove_if_present(dir.join(CHECKPOINT_FILE))
+    remove_if_present(dir.join(CHECKPOINT_FILE))
 }
