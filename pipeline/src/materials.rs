@@ -46,7 +46,7 @@ pub struct ObjectMaterial {
     pub emission: [f32; 3],
     /// The model the fit chose for the object (e.g. `diffuse`, `specular+emission`).
     pub model: String,
-    /// Why the fit chose `model`: the held-out evidence for or against each term (issue 7). Optional, so
+    /// Why the fit chose `model`: the held-out evidence for or against each term. Optional, so
     /// files without it (written by hand, or by earlier versions) still read.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub why: Option<String>,

@@ -49,7 +49,7 @@ pub struct ReportData {
     pub samples: Option<SampleCounts>,
 }
 
-/// Path samples a fit traced and, of them, the ones the tracer discarded as non-finite (issue 7).
+/// Path samples a fit traced and, of them, the ones the tracer discarded as non-finite.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SampleCounts {
     pub traced_paths: u64,
@@ -157,7 +157,7 @@ pub fn html(data: &ReportData) -> String {
             o.id,
             escape(&o.label),
             o.triangles,
-            // Issue 7: values no photo constrains are flagged, not presented as estimates.
+            // Values no photo constrains are flagged, not presented as estimates.
             if o.constrained == Some(false) {
                 format!("{} (unconstrained)", escape(&o.model))
             } else {

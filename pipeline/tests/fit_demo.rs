@@ -1,6 +1,6 @@
 //! The per-object fit on the committed default scene `data-fixtures/demo/` (read from its EXR photos):
-//! issue 5's acceptance numbers — albedo mean L1 ≤ 0.01 over non-emitting objects, the hidden light within
-//! 5 %, no other emitter above 1 % of it — and every wall and box diffuse.
+//! albedo mean L1 ≤ 0.01 over non-emitting objects, the hidden light within 5 %, no other emitter above 1 % of
+//! it, and every wall and box diffuse.
 
 use optim::fit::ObjectFitSettings;
 use std::path::Path;

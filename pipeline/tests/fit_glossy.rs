@@ -1,4 +1,4 @@
-//! Model selection on glossy dielectrics (issue 7): the objects with a specular lobe (floor: specular 0.8,
+//! Model selection on glossy dielectrics: the objects with a specular lobe (floor: specular 0.8,
 //! roughness 0.4; box: specular 1, roughness 0.25) gain it and their roughness comes within 0.05 of the truth;
 //! the diffuse walls and ceiling stay diffuse, and the hidden light is still found.
 //!
@@ -46,7 +46,7 @@ fn glossy_objects_gain_the_specular_lobe_and_walls_stay_diffuse() {
         };
         assert_eq!(out.per_object[k].model, want, "{}: {}", o.label, out.per_object[k].why);
         if o.specular > 0.0 {
-            // Issue 7's acceptance: roughness within 0.05 of the truth.
+            // Roughness within 0.05 of the truth.
             let r = out.params.materials[k].roughness;
             assert!((r - o.roughness).abs() <= 0.05, "{}: roughness {r} for {}", o.label, o.roughness);
         }
@@ -54,6 +54,6 @@ fn glossy_objects_gain_the_specular_lobe_and_walls_stay_diffuse() {
     let light = built.desc.objects.iter().position(|o| o.hidden).unwrap();
     let truth = built.params.emission[light];
     let err = ((out.params.emission[light] - truth).abs() / truth).max_element();
-    // Issue 5's tolerance for the hidden light.
+    // The demo's 5 % tolerance for the hidden light.
     assert!(err <= 0.05, "light emission {} for {truth}", out.params.emission[light]);
 }

@@ -1,7 +1,7 @@
 //! The shipped gradient estimator is unbiased at the ground truth: the mean over many independent seeds of
 //! the L1 loss gradient (weights sign(I_value − I_target)/B, `n_value` value paths, `n_grad` independent
 //! gradient paths, paper Eq. 4) is zero within its standard error, for every base-colour component.
-//! Issue 5 fact (1): with 4 value paths the L1 gradient at the truth was biased (t ≈ −80).
+//! With 4 value paths the L1 gradient at the truth was biased (t ≈ −80).
 
 use glam::Vec3;
 use optim::fit::object::loss_weight;
@@ -76,12 +76,12 @@ fn shipped_gradient_estimator_is_zero_mean_at_the_truth() {
     let t = gradient_t_stats(&s, 64);
     eprintln!("{:?} loss, n_value = {}: t = {t:.2?}", s.loss, s.n_value);
     // 21 components and their sum: under zero mean each |t| (63 dof) exceeds 3.5 with probability ≈ 1e-3, so
-    // the family fails by chance with probability ≈ 2 %, while a bias like issue 5's (t ≈ 80) fails it.
+    // the family fails by chance with probability ≈ 2 %, while a bias like the one once measured (t ≈ 80) fails it.
     let worst = t.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     assert!(worst < 3.5, "max |t| = {worst}");
 }
 
-/// The paper's plain L1 weight with few value paths is biased (issue 5 fact 1), and the same statistic sees
+/// The paper's plain L1 weight with few value paths is biased, and the same statistic sees
 /// it: evidence that the test above has the power to catch a biased estimator. (At 128 paths the L1 bias is
 /// still there but smaller: summed-gradient t = −3.9 over 64 draws, measured; hence the Huber default.)
 #[test]

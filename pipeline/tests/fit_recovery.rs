@@ -47,7 +47,7 @@ fn small_room_albedo_and_hidden_light_are_recovered() {
     let l1 = l1 / n as f32;
     let e_err = ((out.params.emission[light] - truth.emission[light]).abs() / truth.emission[light]).max_element();
     eprintln!("albedo mean L1 {l1:.4}, light emission max rel err {e_err:.4}");
-    // Issue 5 acceptance for the smaller scene: albedo L1 ≤ 0.02, light within 5 %, no other emitter > 1 %.
+    // Acceptance for the smaller scene: albedo L1 ≤ 0.02, light within 5 %, no other emitter > 1 %.
     assert!(l1 <= 0.02, "albedo mean L1 {l1}");
     assert!(e_err <= 0.05, "light emission relative error {e_err}");
     assert_eq!(out.per_object[light].model, "diffuse+emission");

@@ -1,4 +1,4 @@
-//! Numerical stability at the extremes (issue 7): small synthetic rooms built with the synth module in a
+//! Numerical stability at the extremes: small synthetic rooms built with the synth module in a
 //! temporary directory, photographed by our renderer, and fitted by the per-object fit. Every run must finish
 //! with finite parameters and losses (a non-finite gradient, loss or parameter aborts the fit with
 //! `FitError::NonFinite`), with **zero** discarded path samples (the tracer drops and counts samples whose
@@ -183,7 +183,7 @@ fn albedo_0_02_and_0_98() {
     for k in [0, 2, 3] {
         assert!(albedo_err(&out, &built, k) <= 0.03, "object {k}: {:?}", out.params.materials[k].base_color);
     }
-    // The light, found only through interreflection: issue 5's 5 % tolerance doubled for the smaller images
+    // The light, found only through interreflection: the demo's 5 % tolerance doubled for the smaller images
     // and a near-black wall that returns almost nothing.
     assert!(light_err(&out, &built, 6) <= 0.1, "light {}", out.params.emission[6]);
 }
@@ -206,7 +206,7 @@ fn an_emitter_ten_thousand_times_brighter_than_the_walls_with_hdr_pixels_of_1e5(
     let out = fit(&built, diffuse_settings());
     // The lamp fills whole pixels in the views that see it: its radiance is read almost directly (5 %).
     assert!(light_err(&out, &built, 7) <= 0.05, "lamp {}", out.params.emission[7]);
-    // Issue 5's criterion: no other emitter above 1 % of the lamp's radiance.
+    // No other emitter above 1 % of the lamp's radiance.
     for k in 0..7 {
         assert!(out.params.emission[k].max_element() <= 0.01 * 1e5, "object {k} emits {}", out.params.emission[k]);
     }

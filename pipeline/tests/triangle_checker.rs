@@ -1,8 +1,8 @@
-//! Issue 6 acceptance: the checker scene (data-fixtures/scenes/checker.toml: a 4 × 4 checkerboard floor that the
-//! scan mesh models as 2 triangles, untextured walls) through `pipeline run` (ingest → preprocess → object →
+//! The per-triangle fit on the checker scene (data-fixtures/scenes/checker.toml: a 4 × 4 checkerboard floor
+//! that the scan mesh models as 2 triangles, untextured walls) through `pipeline run` (ingest → preprocess → object →
 //! triangle → export). After the per-triangle stage the floor's exported albedo, sampled at 2000 random floor
 //! points through `export/mesh.ply` (point → containing face → albedo), has PSNR ≥ 40 dB against the true
-//! checker (issue 7; 28 dB in issue 6), the walls were not subdivided, and the light of the per-triangle result
+//! checker (28 dB was the first bound), the walls were not subdivided, and the light of the per-triangle result
 //! is within 3 % of the truth. Also: a rerun resumes nothing and skips every stage, and `pipeline export
 //! RUN_DIR` rewrites the same mesh.ply.
 //!

@@ -1,4 +1,4 @@
-//! Discarded samples (issue 7): a path whose estimate is not finite contributes nothing and is counted in
+//! Discarded samples: a path whose estimate is not finite contributes nothing and is counted in
 //! `TraceStats::discarded`. An ordinary scene discards nothing; a lamp emitting `f32::MAX` makes every path
 //! that sees it and gathers any further light overflow to ∞ (MAX + x rounds to ∞ for x ≥ half an ulp of MAX,
 //! 2^103), and those are dropped while every returned pixel value and gradient stays finite.

@@ -18,7 +18,7 @@ pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/1";
 pub const HISTORY_FORMAT: &str = "ipt-object-history/1";
 
 /// `history.json`: the fit's trajectory (entries as the fit records them), per-object model decisions and the
-/// fit's path-sample counts (issue 7; `materials.json` is a fixed schema, so the per-stage numbers live here).
+/// fit's path-sample counts (`materials.json` is a fixed schema, so the per-stage numbers live here).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HistoryFile {

@@ -1,5 +1,5 @@
 //! `pipeline bench`: the speed/accuracy trade-off of the per-object fit measured on the synthetic fixtures
-//! (issue 7), the paper's value/gradient path ablations (Fig. 9, 10), and the comparison with the Mitsuba 3
+//! the paper's value/gradient path ablations (Fig. 9, 10), and the comparison with the Mitsuba 3
 //! baseline (tests/validation/mitsuba_baseline).
 //!
 //! - [`tradeoff`]: one-at-a-time sweeps around the default settings plus joint corners; per point wall time,
