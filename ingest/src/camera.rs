@@ -10,6 +10,8 @@
 //! - Distortion acts on normalised OpenCV coordinates (x right, y down, z forward) = `(X/Z, Y/Z)` with
 //!   `(X, Y, Z) = (x_gl, -y_gl, -z_gl)`.
 
+use std::path::PathBuf;
+
 use glam::{DMat4, DVec2, DVec3};
 use serde::{Deserialize, Serialize};
 
@@ -95,4 +97,14 @@ impl Camera {
         let c = self.cam_to_world.inverse().transform_point3(p);
         self.project_opencv(DVec3::new(c.x, -c.y, -c.z))
     }
+}
+
+/// One photo and the camera that took it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct View {
+    /// Stable name (the image file stem).
+    pub name: String,
+    /// The image to use: a linear `.exr`/`.hdr` sibling when one exists, else the listed file.
+    pub image_path: PathBuf,
+    pub camera: Camera,
 }

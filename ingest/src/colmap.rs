@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
 
+use crate::camera::View;
 use crate::camera::{Camera, Distortion, Intrinsics};
 use crate::error::IngestError;
 use crate::image_header::{check_image_size, resolve_image};
-use crate::scan::View;
 
 /// Largest accepted deviation of a quaternion's norm from 1: COLMAP writes unit quaternions with ~16 digits;
 /// anything further off is not a rotation written by COLMAP (a scaled or garbled pose).

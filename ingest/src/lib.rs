@@ -7,6 +7,7 @@ pub mod camera;
 pub mod colmap;
 pub mod error;
 pub mod image_header;
+pub mod listing;
 pub mod matterport;
 pub mod mesh;
 pub mod obj;
@@ -18,6 +19,7 @@ pub mod srgb;
 pub mod transforms;
 
 pub use atomic::write_atomic;
+pub use camera::View;
 pub use error::IngestError;
 pub use mesh::Mesh;
-pub use scan::{GroupBy, ObjectInfo, Scan, ScanFormat, View, load_scan, objects_seen_by_no_camera};
+pub use scan::{GroupBy, ObjectInfo, Scan, ScanFormat, load_scan, objects_seen_by_no_camera};

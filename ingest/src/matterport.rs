@@ -7,13 +7,14 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
+use crate::camera::View;
 use crate::camera::{Camera, Distortion, Intrinsics};
 use crate::error::IngestError;
 use crate::image_header::{check_image_size, image_dimensions, resolve_image};
+use crate::listing::files_with_extension;
 use crate::mesh::{LabeledMesh, Mesh};
 use crate::ply::read_ply;
 use crate::pose::{check_rigid, from_row_major};
-use crate::scan::{View, files_with_extension};
 
 /// Loads `house_segmentations/<id>.ply` with its `.fsegs.json` and `.semseg.json` (both optional). Returns the
 /// mesh and the PLY path.

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use crate::error::IngestError;
+use crate::listing::files_with_extension;
 use crate::mesh::{LabeledMesh, Mesh};
-use crate::scan::files_with_extension;
 
 /// Loads every `*.obj` in `dir`. Returns the mesh and the path used in messages (the single file, or `dir`).
 pub fn load_obj_dir(dir: &Path) -> Result<(LabeledMesh, PathBuf), IngestError> {

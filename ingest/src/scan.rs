@@ -7,8 +7,9 @@ use glam::{DMat4, DVec2, DVec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::camera::Camera;
+use crate::camera::{Camera, View};
 use crate::error::IngestError;
+use crate::listing::files_with_extension;
 use crate::mesh::{LabeledMesh, Mesh};
 use crate::{colmap, matterport, obj, transforms};
 
@@ -20,16 +21,6 @@ pub struct ObjectInfo {
     pub label: Option<String>,
     /// Number of triangles in the object.
     pub triangles: usize,
-}
-
-/// One photo and the camera that took it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct View {
-    /// Stable name (the image file stem).
-    pub name: String,
-    /// The image to use: a linear `.exr`/`.hdr` sibling when one exists, else the listed file.
-    pub image_path: PathBuf,
-    pub camera: Camera,
 }
 
 /// A scan: mesh, objects (sorted by id), the object of each triangle, and the views.
@@ -185,19 +176,6 @@ pub fn detect_format(dir: &Path) -> Result<ScanFormat, IngestError> {
         message: "unknown scan layout: expected house_segmentations/, *.obj, COLMAP cameras.txt or transforms.json"
             .into(),
     })
-}
-
-/// Sorted files in `dir` whose extension is `ext` (case-insensitive).
-pub(crate) fn files_with_extension(dir: &Path, ext: &str) -> Result<Vec<PathBuf>, IngestError> {
-    let mut out = Vec::new();
-    for entry in std::fs::read_dir(dir).map_err(|e| IngestError::io(dir, e))? {
-        let p = entry.map_err(|e| IngestError::io(dir, e))?.path();
-        if p.is_file() && p.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext)) {
-            out.push(p);
-        }
-    }
-    out.sort();
-    Ok(out)
 }
 
 /// The views for an OBJ directory: COLMAP if present, else `transforms.json`, else none (with a warning).

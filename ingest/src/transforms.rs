@@ -9,11 +9,11 @@ use std::path::{Path, PathBuf};
 use glam::DMat4;
 use serde_json::Value;
 
+use crate::camera::View;
 use crate::camera::{Camera, Distortion, Intrinsics};
 use crate::error::IngestError;
 use crate::image_header::{image_dimensions, resolve_image};
 use crate::pose::check_rigid;
-use crate::scan::View;
 
 /// Reads `transforms.json` at `path`; image paths are relative to its directory.
 pub fn load_views(path: &Path) -> Result<Vec<View>, IngestError> {

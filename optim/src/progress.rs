@@ -14,6 +14,10 @@ pub trait Progress: Sync {
     fn set_position(&self, position: u64) {
         let _ = position;
     }
+    /// `delta` more steps are done (for steps that finish in parallel, out of order).
+    fn inc(&self, delta: u64) {
+        let _ = delta;
+    }
     /// A short status of the current step (e.g. its loss).
     fn set_message(&self, message: &str) {
         let _ = message;

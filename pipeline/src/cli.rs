@@ -1,11 +1,11 @@
-//! Command line: `pipeline run`, `pipeline render`, `pipeline synth`, `pipeline bench`. Parsing only; the work is in the
-//! library modules. Exit codes: 0 success, 1 a failure while running, 2 bad usage or bad config.
+//! Command line: `pipeline run`, `pipeline render`, `pipeline export`. Parsing only; the work is in the
+//! `workflow` library. Exit codes: 0 success, 1 a failure while running, 2 bad usage or bad config.
 
 use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
 
-use crate::plan::StageId;
+use workflow::plan::StageId;
 
 /// Inverse path tracing of indoor scans: recovers per-object materials and emission from photos.
 #[derive(Debug, Parser)]
@@ -22,10 +22,6 @@ pub enum Command {
     Run(RunArgs),
     /// Renders the ingested scene of a run with its (or given) materials from the cameras of a .conf file.
     Render(RenderArgs),
-    /// Generates a synthetic Matterport-layout scan from a scene description.
-    Synth(SynthArgs),
-    /// Measures speed against accuracy of the per-object fit (see `pipeline::bench`).
-    Bench(BenchArgs),
     /// Writes RUN_DIR/export/{mesh.ply, textured.obj + .mtl + albedo atlas, scene.glb} from the run's
     /// per-triangle result (or its per-object result when the triangle stage wrote none).
     Export(ExportArgs),
@@ -36,88 +32,6 @@ pub enum Command {
 pub struct ExportArgs {
     /// A run directory (`output.path` of a run whose `object` stage finished).
     pub run_dir: PathBuf,
-}
-
-/// `pipeline bench`.
-#[derive(Debug, clap::Args)]
-pub struct BenchArgs {
-    #[command(subcommand)]
-    pub what: BenchCommand,
-}
-
-/// The benchmarks.
-#[derive(Debug, Subcommand)]
-pub enum BenchCommand {
-    /// Sweeps the fit's settings on synthetic scenes: CSV, SVG (error vs time, Pareto front), markdown.
-    Tradeoff(BenchTradeoffArgs),
-    /// Adam-phase ablations: value paths (paper Fig. 9) and value/gradient budget split (Fig. 10).
-    Ablation(BenchAblationArgs),
-    /// Mitsuba 3 baseline against our fit on the same scene: time to the same albedo error.
-    Mitsuba(BenchMitsubaArgs),
-}
-
-/// `pipeline bench tradeoff`.
-#[derive(Debug, clap::Args)]
-pub struct BenchTradeoffArgs {
-    /// Scenes (`data-fixtures/scenes/<name>.toml`), comma-separated; scenes with a textured (checker) object
-    /// also run the per-triangle stage at every point.
-    #[arg(long, value_delimiter = ',', default_value = "demo,glossy,checker")]
-    pub scenes: Vec<String>,
-    /// Output directory.
-    #[arg(long, default_value = "docs/tradeoff")]
-    pub out: PathBuf,
-    /// A tiny sweep (smoke test): two points per scene at minimal settings.
-    #[arg(long)]
-    pub quick: bool,
-    /// Run only the sweep points with these labels (comma-separated, e.g. `default,corner:fast`).
-    #[arg(long, value_delimiter = ',')]
-    pub only: Vec<String>,
-    /// Do not run: rebuild the SVG and markdown from the CSV already in `--out`.
-    #[arg(long)]
-    pub replot: bool,
-    /// Workspace root holding `data-fixtures/` (default: the one this binary was built from).
-    #[arg(long)]
-    pub workspace: Option<PathBuf>,
-}
-
-/// `pipeline bench ablation`.
-#[derive(Debug, clap::Args)]
-pub struct BenchAblationArgs {
-    /// Scene (`data-fixtures/scenes/<name>.toml`).
-    #[arg(long, default_value = "demo")]
-    pub scene: String,
-    /// Output directory.
-    #[arg(long, default_value = "docs/tradeoff")]
-    pub out: PathBuf,
-    /// Tiny runs (smoke test).
-    #[arg(long)]
-    pub quick: bool,
-    /// Workspace root holding `data-fixtures/`.
-    #[arg(long)]
-    pub workspace: Option<PathBuf>,
-}
-
-/// `pipeline bench mitsuba`.
-#[derive(Debug, clap::Args)]
-pub struct BenchMitsubaArgs {
-    /// Scene with a committed scan (`data-fixtures/<name>/`).
-    #[arg(long, default_value = "demo")]
-    pub scene: String,
-    /// Output directory.
-    #[arg(long, default_value = "docs/tradeoff")]
-    pub out: PathBuf,
-    /// Wall-time budget of the Mitsuba solve, seconds.
-    #[arg(long, default_value_t = 300.0)]
-    pub budget_seconds: f64,
-    /// Python with Mitsuba 3 (default: `<workspace>/deps/venv/bin/python`).
-    #[arg(long)]
-    pub python: Option<PathBuf>,
-    /// Our side at the `--quick` tradeoff settings only (smoke test).
-    #[arg(long)]
-    pub quick: bool,
-    /// Workspace root holding `data-fixtures/` and `tests/validation/`.
-    #[arg(long)]
-    pub workspace: Option<PathBuf>,
 }
 
 /// `pipeline run`.
@@ -167,15 +81,22 @@ pub struct RenderArgs {
     pub seed: u64,
 }
 
-/// `pipeline synth`.
-#[derive(Debug, clap::Args)]
-pub struct SynthArgs {
-    /// Scene description (TOML).
-    pub desc: PathBuf,
-    /// Output scan directory.
-    pub out_dir: PathBuf,
-}
-
 fn parse_stage(s: &str) -> Result<StageId, String> {
     s.parse()
+}
+
+impl RenderArgs {
+    /// The library's request.
+    pub fn request(&self) -> workflow::render::RenderRequest {
+        workflow::render::RenderRequest {
+            run_dir: self.run_dir.clone(),
+            cameras: self.cameras.clone(),
+            output: self.output.clone(),
+            spp: self.spp,
+            materials: self.materials.clone(),
+            max_depth: self.max_depth,
+            size: self.width.zip(self.height),
+            seed: self.seed,
+        }
+    }
 }

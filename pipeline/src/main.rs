@@ -1,11 +1,18 @@
-//! `pipeline`: thin glue over the library (see `pipeline::cli` for the commands).
+//! `pipeline`: thin glue over the `workflow` library: parses the command line ([`cli`]), draws progress and
+//! writes the run log ([`terminal`]), and turns errors into one line and an exit code.
 //! Exit codes: 0 success, 1 failure while running, 2 bad usage or bad config (one line naming the key).
 
 use std::process::ExitCode;
 
+mod cli;
+mod terminal;
+
 use clap::Parser;
-use pipeline::cli::{Cli, Command};
-use pipeline::config::ConfigError;
+use cli::{Cli, Command};
+use terminal::Terminal;
+use workflow::config::ConfigError;
+use workflow::plan::StageId;
+use workflow::stage_contract::Reporter;
 
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
@@ -34,11 +41,12 @@ fn main() -> ExitCode {
 fn execute(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Run(args) => {
-            let plan = pipeline::plan::Plan::load(&args.config, &args.set)?;
+            let plan = workflow::plan::Plan::load(&args.config, &args.set)?;
             // Checked before any stage runs; the kernels in use decide how hits round (ARCHITECTURE.md).
             eprintln!("embree: {}", tracer::embree::device_info()?);
-            let opts = pipeline::runner::RunOptions { from: args.from, until: args.until };
-            pipeline::runner::run(&plan, opts, &mut pipeline::stages::Stages)?;
+            let opts = workflow::runner::RunOptions { from: args.from, until: args.until };
+            let terminal = Terminal::new(&plan.output);
+            workflow::runner::run(&plan, opts, &mut workflow::stages::Stages, &terminal)?;
             let materials = plan.output.join("materials.json");
             let report = plan.output.join("export").join("report.html");
             if materials.is_file() && report.is_file() {
@@ -46,10 +54,18 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Render(args) => pipeline::render_cmd::render(&args).map_err(Into::into),
-        Command::Synth(args) => pipeline::synth::generate(&args.desc, &args.out_dir).map_err(Into::into),
-        Command::Export(args) => pipeline::stages::export::export_mesh(&args.run_dir).map(|_| ()).map_err(Into::into),
-        Command::Bench(args) => pipeline::bench::run_command(args.what).map_err(Into::into),
+        Command::Render(args) => {
+            let terminal = Terminal::stderr_only();
+            let progress = terminal.progress(StageId::Export, "rendering", 0);
+            let n = workflow::render::render(&args.request(), progress.as_ref())?;
+            drop(progress);
+            eprintln!("[render] {n} views written to {}", args.output.display());
+            Ok(())
+        }
+        Command::Export(args) => {
+            workflow::stages::export::export_mesh(&args.run_dir, &Terminal::stderr_only())?;
+            Ok(())
+        }
     }
 }
 

@@ -6,7 +6,7 @@ mod common;
 use optim::fit::{FitError, FitOutcome, FitState, ObjectFitSettings};
 
 fn run(
-    built: &pipeline::synth::BuiltScene,
+    built: &lab::synth::BuiltScene,
     images: &[ingest::photo::LinearImage],
     settings: &ObjectFitSettings,
     resume: Option<FitState>,
@@ -20,7 +20,7 @@ fn run(
         }
         Ok(())
     };
-    pipeline::synth::fit_resumable(built, images, settings, resume, &mut on_checkpoint)
+    lab::synth::fit_resumable(built, images, settings, resume, &mut on_checkpoint)
 }
 
 #[test]

@@ -40,7 +40,7 @@ fn rerun_skips_every_stage_and_an_object_key_reruns_object_and_later() {
     assert_eq!(code, 0, "{err}");
     assert_eq!(decisions(&err, "running"), ["ingest", "preprocess", "object", "triangle", "export"], "{err}");
     let out = dir.path().join("out");
-    let materials = pipeline::materials::MaterialsFile::read(&out.join("materials.json")).unwrap();
+    let materials = workflow::materials::MaterialsFile::read(&out.join("materials.json")).unwrap();
     assert_eq!(materials.objects.len(), 9);
     assert!(!out.join("object/checkpoint.json").exists(), "checkpoint left behind after a finished fit");
     for f in ["export/report.html", "export/trajectories.csv", "object/history.json"] {
@@ -65,7 +65,7 @@ fn rerun_skips_every_stage_and_an_object_key_reruns_object_and_later() {
     let (code, err) = pipeline(&["run", cfg]);
     assert_eq!(code, 0, "{err}");
     assert_eq!(decisions(&err, "running"), ["object", "triangle", "export"], "{err}");
-    let again = pipeline::materials::MaterialsFile::read(&out.join("materials.json")).unwrap();
+    let again = workflow::materials::MaterialsFile::read(&out.join("materials.json")).unwrap();
     assert_eq!(again, materials);
 }
 

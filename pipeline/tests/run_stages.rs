@@ -29,7 +29,7 @@ fn ingest_and_preprocess_rerun_exactly_when_their_config_or_inputs_change() {
     let views: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("preprocess/views.json")).unwrap()).unwrap();
     assert_eq!(views["views"].as_array().unwrap().len(), 8);
-    let scene = pipeline::artefacts::ingest::Ingested::read(&out).unwrap();
+    let scene = workflow::artefacts::ingest::Ingested::read(&out).unwrap();
     let gt: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(fixture().join("ground_truth_materials.json")).unwrap()).unwrap();
     let gt_tris: usize =

@@ -30,7 +30,7 @@ fn f32_col(mesh: &ingest::ply::PlyMesh, name: &str) -> Vec<f32> {
 #[test]
 fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     let scan = workspace().join("data-fixtures/checker");
-    let desc = pipeline::synth::load_desc(&workspace().join("data-fixtures/scenes/checker.toml")).unwrap();
+    let desc = lab::synth::load_desc(&workspace().join("data-fixtures/scenes/checker.toml")).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("run.toml");
     std::fs::write(&cfg, format!("[scan]\npath = {:?}\n[output]\npath = \"out\"\n", scan.to_str().unwrap())).unwrap();
@@ -41,7 +41,7 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     eprintln!("pipeline run took {:.1} s\n{err}", started.elapsed().as_secs_f64());
     let out = dir.path().join("out");
 
-    let ingested = pipeline::artefacts::ingest::Ingested::read(&out).unwrap();
+    let ingested = workflow::artefacts::ingest::Ingested::read(&out).unwrap();
     let ids: Vec<i64> = ingested.objects.iter().map(|o| o.id).collect();
     let exported = ingest::ply::read_ply(&out.join("export/mesh.ply")).unwrap().mesh;
     let segment = exported.face_ids("segment_id").unwrap();
@@ -58,25 +58,25 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     assert!(floor_after > floor_before);
 
     // 2000 random floor points → containing exported face → albedo, against the true checker (the metric of
-    // `pipeline bench tradeoff`, one source of truth).
-    let quad = pipeline::bench::metrics::CheckerQuad::of(floor).expect("the floor is a checker quad");
+    // `lab bench tradeoff`, one source of truth).
+    let quad = lab::bench::metrics::CheckerQuad::of(floor).expect("the floor is a checker quad");
     let albedo = [f32_col(&exported, "albedo_r"), f32_col(&exported, "albedo_g"), f32_col(&exported, "albedo_b")];
     let albedo: Vec<Vec3> = (0..segment.len()).map(|f| Vec3::new(albedo[0][f], albedo[1][f], albedo[2][f])).collect();
     let floor_faces: Vec<usize> = (0..segment.len()).filter(|&t| segment[t] == floor.id).collect();
-    let n = pipeline::bench::metrics::TEXTURE_POINTS;
-    let texture = pipeline::bench::metrics::checker_albedo_error(
+    let n = lab::bench::metrics::TEXTURE_POINTS;
+    let texture = lab::bench::metrics::checker_albedo_error(
         &quad,
         &exported.positions,
         &exported.triangles,
         &albedo,
         &floor_faces,
         n,
-        pipeline::bench::metrics::TEXTURE_POINTS_SEED,
+        lab::bench::metrics::TEXTURE_POINTS_SEED,
     )
     .unwrap();
     let psnr = texture.psnr_db;
     eprintln!("floor albedo PSNR {psnr:.2} dB, L1 {:.4} over {n} points", texture.l1);
-    // Measured 41.4 dB here (light 2.2 % high); 43.5 dB in `pipeline bench tradeoff --scenes checker --only
+    // Measured 41.4 dB here (light 2.2 % high); 43.5 dB in `lab bench tradeoff --scenes checker --only
     // default` (33.4 dB before the final round re-solved the light). The bound is the acceptance level;
     // the light's scatter (±2 %) moves the PSNR by a few dB.
     assert!(psnr >= 40.0, "PSNR {psnr:.2} dB");
@@ -87,7 +87,7 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     // 17.53, 14.84; the light-change gate finds that significant, p = 9.4e-6). Measured: 20.45, 18.32, 15.08,
     // max 2.2 %. No other
     // object emits (the object stage's model decision is kept).
-    let state = pipeline::artefacts::triangle::read_result(&out).unwrap().expect("triangle/result.json");
+    let state = workflow::artefacts::triangle::read_result(&out).unwrap().expect("triangle/result.json");
     for (o, id) in ids.iter().enumerate() {
         let truth = desc.objects.iter().find(|d| i64::from(d.id) == *id).unwrap();
         let (got, want) = (state.emission[o], Vec3::from_array(truth.emission));
@@ -129,5 +129,5 @@ fn regenerate_checker_fixture_on_request() {
         return;
     }
     let out = workspace().join("data-fixtures/checker");
-    pipeline::synth::generate(&workspace().join("data-fixtures/scenes/checker.toml"), &out).unwrap();
+    lab::synth::generate(&workspace().join("data-fixtures/scenes/checker.toml"), &out).unwrap();
 }

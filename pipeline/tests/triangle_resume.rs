@@ -9,13 +9,13 @@ mod common;
 
 use optim::triangle::TriangleSettings;
 use optim::triangle::{RoundInputs, TriangleError, TriangleState, run_rounds};
-use pipeline::config::TriangleConfig;
+use workflow::config::TriangleConfig;
 
 #[test]
 fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends() {
     let (built, images) = common::synth_scene("checker", 128);
     let k = built.desc.objects.len();
-    let mut start = pipeline::synth::true_triangle_start(&built).unwrap();
+    let mut start = lab::synth::true_triangle_start(&built).unwrap();
     // 8 %: ~10 standard errors of the light-change test's averaged steps (scatter ±1.5 % per step), so the
     // re-solve (the part of the stage whose resumption this checks last) runs.
     for e in &mut start.emission {

@@ -1,4 +1,4 @@
-//! "Uniform objects stay as they are" (issues 6 and 7): on the default scene (data-fixtures/scenes/demo.toml,
+//! "Uniform objects stay as they are": on the default scene (data-fixtures/scenes/demo.toml,
 //! every object one colour) the per-triangle stage, started from the per-object values, (1) splits no triangle
 //! and (2) leaves every triangle of every non-emitting object within a noise-derived tolerance of its object's
 //! value. The split test is Holm-corrected at family-wise level `split_significance` = 0.01 per round, so for
@@ -11,14 +11,14 @@ mod common;
 
 use optim::triangle::TriangleSettings;
 use optim::triangle::{RoundInputs, pixels, ratio, run_rounds, split};
-use pipeline::config::TriangleConfig;
+use workflow::config::TriangleConfig;
 
 #[test]
 fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     // Photo noise: 256 paths per pixel (the fixture's 1024 would only lower it; 256 keeps the test short).
     let (built, images) = common::synth_scene("demo", 256);
     let k = built.desc.objects.len();
-    let start = pipeline::synth::true_triangle_start(&built).unwrap();
+    let start = lab::synth::true_triangle_start(&built).unwrap();
     let config = TriangleConfig::default();
     let object = optim::fit::ObjectFitSettings::default();
     let specular = vec![false; k];

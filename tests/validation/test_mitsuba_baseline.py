@@ -1,4 +1,4 @@
-"""The Mitsuba 3 inverse-rendering baseline of issue 7 (tests/validation/mitsuba_baseline/).
+"""The Mitsuba 3 inverse-rendering baseline (tests/validation/mitsuba_baseline/).
 
 1. The scene conversion is right: Mitsuba's sensor rays equal ours ray by ray (intrinsics, principal point,
    pose, axis convention), and Mitsuba renders the demo scan with its ground-truth materials to our demo

@@ -89,7 +89,7 @@ def test_materials_json_has_the_documented_schema(run_dir):
     src = PlyData.read(str(DEMO / "house_segmentations" / "demo.ply"))
     seg, counts = np.unique(np.asarray(src["face"]["segment_id"]), return_counts=True)
     assert sorted(o["id"] for o in m["objects"]) == sorted(seg.tolist())
-    # Issue 7: the fit also says why it chose each model and whether the photos constrain the object.
+    # The fit also says why it chose each model and whether the photos constrain the object.
     optional = {"why", "constrained"}
     for o in m["objects"]:
         assert keys <= set(o) <= keys | optional

@@ -91,7 +91,7 @@ pub fn total_trace_stats() -> TraceStats {
 
 /// Largest accepted `max_depth`: bounds the random-number dimension (8 per vertex) well inside u32 and the
 /// recorded path length; far beyond any depth with measurable energy.
-const MAX_DEPTH_LIMIT: u32 = 1024;
+pub const MAX_DEPTH_LIMIT: u32 = 1024;
 
 /// A scene with one parameter set, ready to render and differentiate.
 #[derive(Debug)]

@@ -46,7 +46,9 @@ pub mod params;
 pub mod rng;
 pub mod scene;
 
-pub use batch::{PixelRef, Renderer, TraceStats, gradient_pixels, render_image, render_pixels, total_trace_stats};
+pub use batch::{
+    MAX_DEPTH_LIMIT, PixelRef, Renderer, TraceStats, gradient_pixels, render_image, render_pixels, total_trace_stats,
+};
 pub use bsdf::{Material, MaterialAt, MaterialGrad};
 pub use camera::Camera;
 pub use error::TracerError;

@@ -37,11 +37,11 @@ pub fn copy_dir(from: &Path, to: &Path) {
 
 /// The bundled scene `data-fixtures/scenes/<name>.toml` with its photos rendered in memory at `spp` paths per
 /// pixel (instead of the description's own count).
-pub fn synth_scene(name: &str, spp: u32) -> (pipeline::synth::BuiltScene, Vec<ingest::photo::LinearImage>) {
+pub fn synth_scene(name: &str, spp: u32) -> (lab::synth::BuiltScene, Vec<ingest::photo::LinearImage>) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../data-fixtures/scenes/{name}.toml"));
-    let mut desc = pipeline::synth::load_desc(&path).unwrap();
+    let mut desc = lab::synth::load_desc(&path).unwrap();
     desc.spp = spp;
-    let built = pipeline::synth::build(desc, &path).unwrap();
-    let images = pipeline::synth::photos(&built).unwrap();
+    let built = lab::synth::build(desc, &path).unwrap();
+    let images = lab::synth::photos(&built).unwrap();
     (built, images)
 }

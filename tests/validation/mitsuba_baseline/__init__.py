@@ -1,4 +1,4 @@
-"""Mitsuba 3 baseline of the per-object inverse-rendering fit (issue 7): the reference our speed is compared to.
+"""Mitsuba 3 baseline of the per-object inverse-rendering fit: the reference our speed is compared to.
 
 - `scene`: a Matterport-layout scan (house_segmentations/, undistorted_camera_parameters/*.conf,
   undistorted_color_images/*.exr) as a Mitsuba scene — one mesh per object with a two-sided `diffuse` BSDF and

@@ -1,4 +1,4 @@
-"""The Matterport-layout scan (as written by `pipeline::synth`) as a Mitsuba 3 scene.
+"""The Matterport-layout scan (as written by `lab::synth`) as a Mitsuba 3 scene.
 
 One Mitsuba mesh per object (segment group of `<house>.semseg.json`, i.e. the objects our pipeline fits), each
 with a two-sided `diffuse` BSDF and an `area` emitter, and one `perspective` sensor per `scan` line of the

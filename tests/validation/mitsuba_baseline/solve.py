@@ -1,4 +1,4 @@
-"""Mitsuba 3 inverse-rendering baseline for the per-object fit (issue 7): the reference our speed is compared to.
+"""Mitsuba 3 inverse-rendering baseline for the per-object fit: the reference our speed is compared to.
 
 Same problem as `pipeline run` on the scan: the same images, the same unknowns (every object's diffuse
 reflectance and RGB emission), the same initialisation as our fit (albedo 0.5 grey, emission 0 —

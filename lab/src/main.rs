@@ -1,0 +1,182 @@
+//! `lab`: the development commands. `lab synth DESC OUT_DIR` generates a synthetic Matterport-layout scan;
+//! `lab bench tradeoff | ablation | mitsuba` measure the fit's speed against its accuracy (docs/tradeoff/).
+//! Exit codes: 0 success, 1 failure, 2 bad usage.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use lab::bench::{self, ablation, mitsuba, tradeoff};
+
+/// Development tools of ipt: synthetic scans and benchmarks.
+#[derive(Debug, Parser)]
+#[command(name = "lab", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Generates a synthetic Matterport-layout scan from a scene description.
+    Synth(SynthArgs),
+    /// Measures speed against accuracy of the per-object fit.
+    Bench(BenchArgs),
+}
+
+/// `lab bench`.
+#[derive(Debug, clap::Args)]
+struct BenchArgs {
+    #[command(subcommand)]
+    what: BenchCommand,
+}
+
+/// The benchmarks.
+#[derive(Debug, Subcommand)]
+enum BenchCommand {
+    /// Sweeps the fit's settings on synthetic scenes: CSV, SVG (error vs time, Pareto front), markdown.
+    Tradeoff(BenchTradeoffArgs),
+    /// Adam-phase ablations: value paths (paper Fig. 9) and value/gradient budget split (Fig. 10).
+    Ablation(BenchAblationArgs),
+    /// Mitsuba 3 baseline against our fit on the same scene: time to the same albedo error.
+    Mitsuba(BenchMitsubaArgs),
+}
+
+/// `lab bench tradeoff`.
+#[derive(Debug, clap::Args)]
+struct BenchTradeoffArgs {
+    /// Scenes (`data-fixtures/scenes/<name>.toml`), comma-separated; scenes with a textured (checker) object
+    /// also run the per-triangle stage at every point.
+    #[arg(long, value_delimiter = ',', default_value = "demo,glossy,checker")]
+    scenes: Vec<String>,
+    /// Output directory.
+    #[arg(long, default_value = "docs/tradeoff")]
+    out: PathBuf,
+    /// A tiny sweep (smoke test): two points per scene at minimal settings.
+    #[arg(long)]
+    quick: bool,
+    /// Run only the sweep points with these labels (comma-separated, e.g. `default,corner:fast`).
+    #[arg(long, value_delimiter = ',')]
+    only: Vec<String>,
+    /// Do not run: rebuild the SVG and markdown from the CSV already in `--out`.
+    #[arg(long)]
+    replot: bool,
+    /// Workspace root holding `data-fixtures/` (default: the one this binary was built from).
+    #[arg(long)]
+    workspace: Option<PathBuf>,
+}
+
+/// `lab bench ablation`.
+#[derive(Debug, clap::Args)]
+struct BenchAblationArgs {
+    /// Scene (`data-fixtures/scenes/<name>.toml`).
+    #[arg(long, default_value = "demo")]
+    scene: String,
+    /// Output directory.
+    #[arg(long, default_value = "docs/tradeoff")]
+    out: PathBuf,
+    /// Tiny runs (smoke test).
+    #[arg(long)]
+    quick: bool,
+    /// Workspace root holding `data-fixtures/`.
+    #[arg(long)]
+    workspace: Option<PathBuf>,
+}
+
+/// `lab bench mitsuba`.
+#[derive(Debug, clap::Args)]
+struct BenchMitsubaArgs {
+    /// Scene with a committed scan (`data-fixtures/<name>/`).
+    #[arg(long, default_value = "demo")]
+    scene: String,
+    /// Output directory.
+    #[arg(long, default_value = "docs/tradeoff")]
+    out: PathBuf,
+    /// Wall-time budget of the Mitsuba solve, seconds.
+    #[arg(long, default_value_t = 300.0)]
+    budget_seconds: f64,
+    /// Python with Mitsuba 3 (default: `<workspace>/deps/venv/bin/python`).
+    #[arg(long)]
+    python: Option<PathBuf>,
+    /// Our side at the `--quick` tradeoff settings only (smoke test).
+    #[arg(long)]
+    quick: bool,
+    /// Workspace root holding `data-fixtures/` and `tests/validation/`.
+    #[arg(long)]
+    workspace: Option<PathBuf>,
+}
+
+/// `lab synth`.
+#[derive(Debug, clap::Args)]
+struct SynthArgs {
+    /// Scene description (TOML).
+    desc: PathBuf,
+    /// Output scan directory.
+    out_dir: PathBuf,
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
+        }
+    };
+    let result = match cli.command {
+        Command::Synth(a) => lab::synth::generate(&a.desc, &a.out_dir).map_err(anyhow::Error::from),
+        Command::Bench(a) => run_bench(a.what),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+fn run_bench(what: BenchCommand) -> anyhow::Result<()> {
+    let ws = |w: Option<PathBuf>| w.unwrap_or_else(bench::default_workspace);
+    match what {
+        BenchCommand::Tradeoff(a) => {
+            let opts = tradeoff::TradeoffOptions {
+                workspace: ws(a.workspace),
+                scenes: a.scenes,
+                out: a.out.clone(),
+                quick: a.quick,
+                only: a.only,
+            };
+            if a.replot {
+                tradeoff::replot(&opts)?;
+            } else {
+                tradeoff::run(&opts)?;
+            }
+            eprintln!("bench: wrote {}/tradeoff.{{csv,svg,md}}", a.out.display());
+        }
+        BenchCommand::Ablation(a) => {
+            let opts = ablation::AblationOptions {
+                workspace: ws(a.workspace),
+                scene: a.scene,
+                out: a.out.clone(),
+                quick: a.quick,
+            };
+            ablation::run(&opts)?;
+            eprintln!("bench: wrote {}/ablation_*.csv and ablation.svg", a.out.display());
+        }
+        BenchCommand::Mitsuba(a) => {
+            let workspace = ws(a.workspace);
+            let python = a.python.unwrap_or_else(|| workspace.join("deps/venv/bin/python"));
+            let opts = mitsuba::MitsubaOptions {
+                workspace,
+                scene: a.scene,
+                out: a.out,
+                budget_seconds: a.budget_seconds,
+                python,
+                quick: a.quick,
+            };
+            mitsuba::run(&opts)?;
+        }
+    }
+    Ok(())
+}

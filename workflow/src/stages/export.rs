@@ -1,0 +1,378 @@
+//! The `export` stage: the outputs a user reads and reuses.
+//!
+//! - `output.path/materials.json` — the fitted per-object materials, schema `ipt-materials/1`;
+//! - `output.path/export/trajectories.csv` — one row per recorded fit iteration: every numeric (or text)
+//!   field of the fit's history entries, nested fields flattened to dotted column names
+//!   (`params.3.base_color.0`);
+//! - `output.path/export/report.html` — self-contained report ([`crate::report`]): photos beside re-renders
+//!   with the fitted materials and error maps, loss curves, the per-object table.
+//!
+//! - `output.path/export/mesh.ply`, `textured.obj` + `textured.mtl` + `albedo.png` / `albedo.exr`,
+//!   `scene.glb` ([`crate::export::write_all`]): the per-triangle (subdivided) result of the `triangle` stage
+//!   when it wrote one, else the per-object result expanded per triangle ([`export_mesh`], also what
+//!   `pipeline export RUN_DIR` runs). The glTF scene is turned Y-up when the cameras' up axes say the scan is
+//!   Z-up (Matterport and our synthetic scans are).
+
+use std::path::PathBuf;
+
+use crate::artefacts::ingest::Ingested;
+use crate::artefacts::object::{MATERIALS_FILE, read_history, read_result};
+use crate::artefacts::preprocess::Prepared;
+use crate::artefacts::triangle;
+use crate::atomic_file::{write_atomic, write_json_atomic};
+use crate::config::profile_name;
+use crate::plan::StageId;
+use crate::report::{ReportData, RgbImage, Series, ViewPanel};
+use crate::stage_contract::{Reporter, StageContext, StageError};
+
+/// CSV file name inside the stage directory.
+pub const TRAJECTORIES_FILE: &str = "trajectories.csv";
+/// Report file name inside the stage directory.
+pub const REPORT_FILE: &str = "report.html";
+
+/// One table: header and rows of cells (empty where a row lacks the column).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Table {
+    pub columns: Vec<String>,
+    pub rows: Vec<Vec<serde_json::Value>>,
+}
+
+/// Flattens JSON values into `(dotted name, scalar)` pairs; arrays index with their position, except that an
+/// array with one entry per object is indexed by object id and an RGB triple by `r`, `g`, `b`
+/// (`base_color.3.r` = red base colour of the object with id 3).
+fn flatten(prefix: &str, v: &serde_json::Value, ids: &[i64], out: &mut Vec<(String, serde_json::Value)>) {
+    let join = |k: &str| if prefix.is_empty() { k.to_owned() } else { format!("{prefix}.{k}") };
+    match v {
+        serde_json::Value::Object(m) => m.iter().for_each(|(k, x)| flatten(&join(k), x, ids, out)),
+        serde_json::Value::Array(a) => {
+            let per_object = !ids.is_empty() && a.len() == ids.len() && a.iter().all(serde_json::Value::is_array);
+            let rgb = a.len() == 3 && a.iter().all(serde_json::Value::is_number);
+            for (i, x) in a.iter().enumerate() {
+                let key = if per_object {
+                    ids[i].to_string()
+                } else if rgb {
+                    ["r", "g", "b"][i].to_owned()
+                } else {
+                    i.to_string()
+                };
+                flatten(&join(&key), x, ids, out);
+            }
+        }
+        scalar => out.push((if prefix.is_empty() { "value".to_owned() } else { prefix.to_owned() }, scalar.clone())),
+    }
+}
+
+/// The history entries as a table. Columns: `iteration` first, then the other scalar fields, then nested
+/// ones, each group in first-seen order. `ids` are the object ids in the fit's object order.
+#[must_use]
+pub fn history_table(history: &[serde_json::Value], ids: &[i64]) -> Table {
+    let flat: Vec<Vec<(String, serde_json::Value)>> = history
+        .iter()
+        .map(|h| {
+            let mut out = Vec::new();
+            flatten("", h, ids, &mut out);
+            out
+        })
+        .collect();
+    let mut columns: Vec<String> = Vec::new();
+    for (k, _) in flat.iter().flatten() {
+        if !columns.contains(k) {
+            columns.push(k.clone());
+        }
+    }
+    let rank = |c: &String| {
+        if c == "iteration" {
+            0
+        } else if c.contains('.') {
+            2
+        } else {
+            1
+        }
+    };
+    columns.sort_by_key(rank); // stable: first-seen order within each group
+    let index: std::collections::HashMap<&str, usize> =
+        columns.iter().enumerate().map(|(i, c)| (c.as_str(), i)).collect();
+    let rows = flat
+        .iter()
+        .map(|row| {
+            let mut cells = vec![serde_json::Value::Null; columns.len()];
+            for (k, v) in row {
+                cells[index[k.as_str()]] = v.clone();
+            }
+            cells
+        })
+        .collect();
+    Table { columns, rows }
+}
+
+fn csv_cell(v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::Null => String::new(),
+        serde_json::Value::String(s) if s.contains([',', '"', '\n']) => format!("\"{}\"", s.replace('"', "\"\"")),
+        serde_json::Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+/// RFC 4180 CSV text of a table.
+#[must_use]
+pub fn to_csv(t: &Table) -> String {
+    let mut s = t.columns.iter().map(|c| csv_cell(&serde_json::Value::String(c.clone()))).collect::<Vec<_>>().join(",");
+    s.push('\n');
+    for row in &t.rows {
+        s.push_str(&row.iter().map(csv_cell).collect::<Vec<_>>().join(","));
+        s.push('\n');
+    }
+    s
+}
+
+/// Loss curves: every numeric column whose name contains `loss`, against the `iteration` column (or the row
+/// number when there is none).
+#[must_use]
+pub fn loss_series(t: &Table) -> Vec<Series> {
+    let it = t.columns.iter().position(|c| c == "iteration");
+    t.columns
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.to_lowercase().contains("loss"))
+        .map(|(j, c)| Series {
+            name: c.clone(),
+            points: t
+                .rows
+                .iter()
+                .enumerate()
+                .filter_map(|(i, row)| {
+                    let x = it.and_then(|k| row[k].as_f64()).unwrap_or(i as f64);
+                    row[j].as_f64().map(|y| (x, y))
+                })
+                .collect(),
+        })
+        .filter(|s| !s.points.is_empty())
+        .collect()
+}
+
+/// Indices of at most `k` views spread evenly over `n`.
+#[must_use]
+pub fn spread(n: usize, k: usize) -> Vec<usize> {
+    if k == 0 || n == 0 {
+        return Vec::new();
+    }
+    if k >= n {
+        return (0..n).collect();
+    }
+    (0..k).map(|i| i * n / k).collect()
+}
+
+/// True when the cameras' up axes (camera +y in world) point mostly along world ±z: the scan is Z-up.
+#[must_use]
+pub fn scan_is_z_up(views: &[ingest::View]) -> bool {
+    let up = views.iter().fold(glam::DVec3::ZERO, |acc, v| acc + v.camera.cam_to_world.y_axis.truncate());
+    up.z.abs() > up.y.abs()
+}
+
+/// Writes the mesh exports of a run directory into `run_dir/export/` (see the module docs); returns the
+/// files written, relative to `run_dir`.
+pub fn export_mesh(run_dir: &std::path::Path, reporter: &dyn Reporter) -> Result<Vec<PathBuf>, StageError> {
+    use crate::export::{ExportInput, ExportOptions, expand_per_object, write_all};
+    let scene_data = Ingested::read(run_dir)?;
+    let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
+    let segment = |o: u32| i32::try_from(ids[o as usize]).unwrap_or(i32::MAX);
+    let opts = ExportOptions { z_up: scan_is_z_up(&scene_data.views), ..ExportOptions::default() };
+    let dir = run_dir.join("export");
+    let report = match triangle::read_result(run_dir)? {
+        Some(st) => {
+            if let Some(t) = st.face_object.iter().position(|&o| o as usize >= ids.len()) {
+                return Err(StageError::Artefact {
+                    path: run_dir.join("triangle").join(triangle::RESULT_FILE),
+                    message: format!("triangle {t}: object {} of {}", st.face_object[t], ids.len()),
+                });
+            }
+            let emission: Vec<glam::Vec3> = st.face_object.iter().map(|&o| st.emission[o as usize]).collect();
+            let segment_id: Vec<i32> = st.face_object.iter().map(|&o| segment(o)).collect();
+            let input = ExportInput {
+                positions: &st.positions,
+                triangles: &st.triangles,
+                materials: &st.materials,
+                emission: &emission,
+                segment_id: &segment_id,
+            };
+            write_all(&dir, &input, &opts)?
+        }
+        None => {
+            let path = run_dir.join("object").join(MATERIALS_FILE);
+            let params = read_result(run_dir)?.params_for(&ids, &path)?;
+            let per = expand_per_object(&scene_data.face_object, &ids, &params.materials, &params.emission)?;
+            let input = ExportInput {
+                positions: &scene_data.positions,
+                triangles: &scene_data.triangles,
+                materials: &per.materials,
+                emission: &per.emission,
+                segment_id: &per.segment_id,
+            };
+            write_all(&dir, &input, &opts)?
+        }
+    };
+    reporter.note(
+        StageId::Export,
+        &format!(
+            "{} triangles, {} segments, atlas {}x{} → {}",
+            report.atlas.triangles,
+            report.segments,
+            report.atlas.width,
+            report.atlas.height,
+            dir.display()
+        ),
+    );
+    Ok(report
+        .files
+        .iter()
+        .map(|f| f.strip_prefix(run_dir).map(std::path::Path::to_path_buf).unwrap_or_else(|_| f.clone()))
+        .collect())
+}
+
+/// report.html's per-triangle section: triangle counts per object before/after the `triangle` stage and
+/// `export/albedo.png`; `None` when the stage wrote no result.
+fn triangle_section(
+    run_dir: &std::path::Path,
+    scene_data: &Ingested,
+) -> Result<Option<crate::report::TriangleSection>, StageError> {
+    let Some(st) = triangle::read_result(run_dir)? else { return Ok(None) };
+    let k = scene_data.objects.len();
+    let mut before = vec![0usize; k];
+    for &o in &scene_data.face_object {
+        if let Some(c) = before.get_mut(o as usize) {
+            *c += 1;
+        }
+    }
+    let after = st.triangles_per_object(k);
+    let counts = scene_data
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| (o.id, o.label.clone().unwrap_or_default(), before[i], after[i]))
+        .collect();
+    let atlas_png = std::fs::read(run_dir.join("export").join("albedo.png")).ok();
+    Ok(Some(crate::report::TriangleSection { counts, atlas_png }))
+}
+
+/// Runs the stage.
+pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
+    let plan = ctx.plan;
+    let materials = read_result(&plan.output)?;
+    let history = read_history(&plan.output)?;
+    write_json_atomic(&plan.output.join("materials.json"), &materials)?;
+
+    let scene_data = Ingested::read(&plan.output)?;
+    let prepared = Prepared::read(&plan.output)?;
+    let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
+    let table = history_table(&history.history, &ids);
+    write_atomic(&ctx.dir.join(TRAJECTORIES_FILE), to_csv(&table).as_bytes())?;
+
+    let params = materials.params_for(&ids, &plan.output.join("object").join(MATERIALS_FILE))?;
+    let scene = tracer::Scene::new(scene_data.scene_input())?;
+    let cameras = prepared.tracer_cameras();
+    let settings = plan.tracer.settings();
+    let chosen = spread(prepared.names.len(), plan.export.report_views as usize);
+    let bar = ctx.progress("report re-renders", chosen.len() as u64);
+    let mut views = Vec::new();
+    for &v in &chosen {
+        let img = &prepared.images[v];
+        let render =
+            tracer::render_image(&scene, &params, &cameras[v], plan.export.report_spp, &settings, plan.export.seed, 0)?;
+        views.push(ViewPanel {
+            name: prepared.names[v].clone(),
+            photo: RgbImage { width: img.width, height: img.height, rgb: img.rgb.clone() },
+            render: RgbImage {
+                width: img.width,
+                height: img.height,
+                rgb: render.iter().flat_map(|c| c.to_array()).collect(),
+            },
+            mask: img.mask.clone(),
+        });
+        bar.inc(1);
+    }
+    drop(bar);
+    let data = ReportData {
+        title: format!("Inverse path tracing: {}", plan.scan.path.display()),
+        emission_profile: profile_name(materials.emission_profile).to_owned(),
+        views,
+        loss: loss_series(&table),
+        objects: materials.objects.clone(),
+        why: history.why.clone(),
+        triangle: None,
+        // history.json files written before the counts existed hold 0 paths: nothing to show then.
+        samples: (history.traced_paths > 0).then_some(crate::report::SampleCounts {
+            traced_paths: history.traced_paths,
+            discarded: history.discarded_samples,
+        }),
+        notes: vec![
+            format!("config: {}", plan.config_path.display()),
+            format!(
+                "{} triangles, {} objects, {} prepared views; re-renders at {} paths per pixel, max depth {}",
+                scene_data.triangles.len(),
+                scene_data.objects.len(),
+                prepared.names.len(),
+                plan.export.report_spp,
+                plan.tracer.max_depth
+            ),
+        ],
+    };
+    // The mesh export first: report.html shows its albedo atlas in the per-triangle section.
+    let mesh_files = export_mesh(&plan.output, ctx.reporter)?;
+    let mut data = data;
+    data.triangle = triangle_section(&plan.output, &scene_data)?;
+    write_atomic(&ctx.dir.join(REPORT_FILE), crate::report::html(&data).as_bytes())?;
+    let mut files = vec![
+        PathBuf::from("materials.json"),
+        PathBuf::from("export").join(TRAJECTORIES_FILE),
+        PathBuf::from("export").join(REPORT_FILE),
+    ];
+    files.extend(mesh_files);
+    ctx.note(&format!("wrote {}", plan.output.join("materials.json").display()));
+    Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn history_flattens_by_object_id_and_channel_with_iteration_first() {
+        let h = vec![
+            json!({"loss": 2.0, "iteration": 0, "base_color": [[0.5, 0.25, 0.0], [1.0, 1.0, 1.0]], "w": [7, 8]}),
+            json!({"iteration": 10, "loss": 1.0, "note": "a,b"}),
+        ];
+        let t = history_table(&h, &[3, 9]);
+        assert_eq!(
+            t.columns,
+            [
+                "iteration",
+                "loss",
+                "note",
+                "base_color.3.r",
+                "base_color.3.g",
+                "base_color.3.b",
+                "base_color.9.r",
+                "base_color.9.g",
+                "base_color.9.b",
+                "w.0",
+                "w.1"
+            ]
+        );
+        let csv = to_csv(&t);
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(lines[1], "0,2.0,,0.5,0.25,0.0,1.0,1.0,1.0,7,8");
+        assert_eq!(lines[2], "10,1.0,\"a,b\",,,,,,,,");
+        let s = loss_series(&t);
+        assert_eq!(s.len(), 1);
+        assert_eq!(s[0].points, [(0.0, 2.0), (10.0, 1.0)]);
+    }
+
+    #[test]
+    fn spread_picks_evenly_and_caps() {
+        assert_eq!(spread(10, 3), [0, 3, 6]);
+        assert_eq!(spread(2, 6), [0, 1]);
+        assert!(spread(5, 0).is_empty());
+    }
+}

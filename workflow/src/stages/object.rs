@@ -1,0 +1,107 @@
+//! The `object` stage: per-object material and emission fit ([`optim::fit::fit_objects`]) on the ingested
+//! mesh and the prepared photos, with checkpoints so an interrupted run resumes where it stopped.
+//!
+//! Artefacts in `output.path/object/`:
+//! - `materials.json` — the result in the `ipt-materials/1` schema ([`crate::materials`]);
+//! - `history.json` — `{"format": "ipt-object-history/1", "history": [...], "why": [...], "traced_paths",
+//!   "discarded_samples"}`: the fit's per-iteration trajectory, each object's model decision, and how many
+//!   path samples the fit traced and how many of them the tracer discarded as non-finite;
+//! - `checkpoint.json` while the stage runs — `{"format": "ipt-object-checkpoint/1", "config_sha256",
+//!   "inputs_sha256", "state"}`, rewritten atomically at every checkpoint the fit hands out and deleted once
+//!   the outputs above are written. A rerun resumes from it only when both hashes match the current run
+//!   (same config section, same inputs), so a stale checkpoint is never mixed into a different fit.
+
+use std::path::PathBuf;
+
+use crate::artefacts::checkpoint;
+use crate::artefacts::ingest::Ingested;
+use crate::artefacts::object::{CHECKPOINT_FORMAT, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE};
+use crate::artefacts::preprocess::Prepared;
+use crate::atomic_file::write_json_atomic;
+use crate::config::profile_name;
+use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
+use crate::stage_contract::{StageContext, StageError};
+use optim::fit::{FitError, FitInputs, FitState, ObjectDesc};
+
+/// Runs the stage.
+pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
+    let plan = ctx.plan;
+    let scene_data = Ingested::read(&plan.output)?;
+    let prepared = Prepared::read(&plan.output)?;
+    let scene = tracer::Scene::new(scene_data.scene_input())?;
+    let cameras = prepared.tracer_cameras();
+    let tris = scene_data.object_triangles();
+    let objects: Vec<ObjectDesc> = scene_data
+        .objects
+        .iter()
+        .zip(&tris)
+        .enumerate()
+        .map(|(i, (o, t))| ObjectDesc { id: o.id, label: scene_data.label(i), triangles: t.clone() })
+        .collect();
+    let settings = plan.tracer.settings();
+    let inputs = FitInputs {
+        scene: &scene,
+        cameras: &cameras,
+        images: &prepared.images,
+        objects: &objects,
+        settings: &plan.object,
+        tracer: &settings,
+    };
+    let resume: Option<FitState> = checkpoint::resumable(ctx, CHECKPOINT_FORMAT);
+    if let Some(state) = &resume {
+        ctx.note(&format!("resuming from the checkpoint at iteration {}", state.iteration));
+    }
+    let mut on_checkpoint = |state: &FitState| -> Result<(), FitError> {
+        checkpoint::write(ctx, CHECKPOINT_FORMAT, state).map_err(|e| FitError::Checkpoint(e.to_string()))?;
+        tracing::debug!(iteration = state.iteration, "checkpoint written");
+        Ok(())
+    };
+    let progress = ctx.progress("fit", u64::from(plan.object.iterations));
+    let outcome = optim::fit::fit_objects(&inputs, resume, &mut on_checkpoint, progress.as_ref())?;
+    drop(progress);
+
+    let materials = MaterialsFile {
+        format: MATERIALS_FORMAT.into(),
+        emission_profile: plan.tracer.emission_profile,
+        objects: objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| {
+                let m = outcome.params.materials[i];
+                let e = outcome.params.emission[i];
+                ObjectMaterial {
+                    id: o.id,
+                    label: o.label.clone(),
+                    triangles: o.triangles.len(),
+                    base_color: m.base_color.to_array(),
+                    roughness: m.roughness,
+                    metallic: m.metallic,
+                    specular: m.specular,
+                    emission: e.to_array(),
+                    model: outcome.per_object.get(i).map(|p| p.model.clone()).unwrap_or_default(),
+                    why: outcome.per_object.get(i).map(|p| p.why.clone()),
+                    constrained: outcome.per_object.get(i).map(|p| p.constrained),
+                }
+            })
+            .collect(),
+    };
+    let history = HistoryFile {
+        format: HISTORY_FORMAT.into(),
+        history: outcome.history.iter().map(|h| serde_json::to_value(h).unwrap_or(serde_json::Value::Null)).collect(),
+        why: outcome.per_object.iter().map(|p| p.why.clone()).collect(),
+        traced_paths: outcome.traced_paths,
+        discarded_samples: outcome.discarded_samples,
+    };
+    write_json_atomic(&ctx.dir.join(MATERIALS_FILE), &materials)?;
+    write_json_atomic(&ctx.dir.join(HISTORY_FILE), &history)?;
+    // The result is on disk; the checkpoint has served its purpose.
+    checkpoint::remove(&ctx.dir)?;
+    ctx.note(&format!(
+        "fitted {} objects ({} emission profile); {} of {} path samples discarded as non-finite",
+        objects.len(),
+        profile_name(plan.tracer.emission_profile),
+        outcome.discarded_samples,
+        outcome.traced_paths
+    ));
+    Ok(vec![PathBuf::from("object").join(MATERIALS_FILE), PathBuf::from("object").join(HISTORY_FILE)])
+}

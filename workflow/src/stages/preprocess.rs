@@ -1,0 +1,92 @@
+//! The `preprocess` stage: turns each selected view's photo into linear radiance with a validity mask
+//! (undistorted, optionally downscaled; `ingest::photo::prepare_view`) and caches it.
+//!
+//! Artefacts in `output.path/preprocess/` ([`crate::artefacts::preprocess`] reads them back): `<view>.exr` + `<view>.json` per view (ingest's photo cache:
+//! R, G, B, mask and the prepared pinhole camera) and `views.json` = `{"format": "ipt-views/1",
+//! "views": [names in order]}`, the order every later stage uses for view indices.
+
+use std::path::{Path, PathBuf};
+
+use ingest::View;
+use ingest::photo::PhotoOptions;
+use rayon::prelude::*;
+
+use crate::artefacts::ingest::Ingested;
+use crate::artefacts::preprocess::{VIEWS_FILE, VIEWS_FORMAT, ViewList};
+use crate::atomic_file::write_json_atomic;
+use crate::config::ImagesConfig;
+use crate::stage_contract::{StageContext, StageError};
+
+/// The views `images.cameras` and `images.every` select, in scan order. Errors name a listed camera the scan
+/// does not have.
+pub fn select_views<'a>(views: &'a [View], cfg: &ImagesConfig) -> Result<Vec<&'a View>, String> {
+    for want in &cfg.cameras {
+        if !views.iter().any(|v| &v.name == want) {
+            return Err(format!("images.cameras: the scan has no view named `{want}`"));
+        }
+    }
+    let chosen: Vec<&View> = views.iter().filter(|v| cfg.cameras.is_empty() || cfg.cameras.contains(&v.name)).collect();
+    Ok(chosen.into_iter().step_by(cfg.every.max(1) as usize).collect())
+}
+
+/// Runs the stage.
+pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
+    let scene = Ingested::read(&ctx.plan.output)?;
+    let chosen = select_views(&scene.views, &ctx.plan.images)
+        .map_err(|message| StageError::Artefact { path: ctx.plan.config_path.clone(), message })?;
+    if chosen.is_empty() {
+        return Err(StageError::Artefact { path: ctx.plan.config_path.clone(), message: "no view selected".into() });
+    }
+    let opts = PhotoOptions { downscale: ctx.plan.images.downscale, ..PhotoOptions::default() };
+    let bar = ctx.progress("preparing photos", chosen.len() as u64);
+    let written: Vec<Vec<PathBuf>> = chosen
+        .par_iter()
+        .map(|v| {
+            let (camera, img) = ingest::photo::prepare_view(&v.image_path, &v.camera, &opts)?;
+            ingest::photo::write_cached(&ctx.dir, &v.name, &camera, &img)?;
+            bar.inc(1);
+            let (exr, json) = ingest::photo::cache::cached_paths(Path::new("preprocess"), &v.name);
+            Ok(vec![exr, json])
+        })
+        .collect::<Result<_, StageError>>()?;
+    drop(bar);
+    let list = ViewList { format: VIEWS_FORMAT.into(), views: chosen.iter().map(|v| v.name.clone()).collect() };
+    write_json_atomic(&ctx.dir.join(VIEWS_FILE), &list)?;
+    ctx.note(&format!("{} views prepared (downscale {})", chosen.len(), ctx.plan.images.downscale));
+    let mut outputs: Vec<PathBuf> = written.into_iter().flatten().collect();
+    outputs.push(PathBuf::from("preprocess").join(VIEWS_FILE));
+    Ok(outputs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn view(name: &str) -> View {
+        View {
+            name: name.into(),
+            image_path: PathBuf::from(format!("{name}.exr")),
+            camera: ingest::camera::Camera {
+                width: 1,
+                height: 1,
+                intrinsics: ingest::camera::Intrinsics { fx: 1.0, fy: 1.0, cx: 0.0, cy: 0.0 },
+                distortion: ingest::camera::Distortion::default(),
+                cam_to_world: glam::DMat4::IDENTITY,
+            },
+        }
+    }
+
+    #[test]
+    fn selection_by_name_then_stride_keeps_scan_order() {
+        let views: Vec<View> = ["a", "b", "c", "d", "e"].map(view).into();
+        let names = |cfg: &ImagesConfig| -> Vec<String> {
+            select_views(&views, cfg).unwrap().iter().map(|v| v.name.clone()).collect()
+        };
+        assert_eq!(names(&ImagesConfig::default()), ["a", "b", "c", "d", "e"]);
+        assert_eq!(names(&ImagesConfig { every: 2, ..ImagesConfig::default() }), ["a", "c", "e"]);
+        let cfg = ImagesConfig { cameras: vec!["e".into(), "b".into(), "d".into()], every: 2, downscale: 1 };
+        assert_eq!(names(&cfg), ["b", "e"]);
+        let bad = ImagesConfig { cameras: vec!["zz".into()], ..ImagesConfig::default() };
+        assert!(select_views(&views, &bad).unwrap_err().contains("`zz`"));
+    }
+}

@@ -1,0 +1,99 @@
+//! The `triangle` stage: per-triangle fit with adaptive subdivision ([`optim::triangle`]) starting from the
+//! `object` stage's result.
+//!
+//! Artefacts in `output.path/triangle/`:
+//! - `result.json` — `{"format": "ipt-triangle/1", "state": TriangleState}`: the (subdivided) mesh, per-triangle
+//!   materials, per-object emission and the log of every round. Not written when `triangle.enabled = false`
+//!   (an old one is removed, so `export` falls back to the per-object result).
+//! - `checkpoint.json` while the stage runs — `{"format": "ipt-triangle-checkpoint/1", "config_sha256",
+//!   "inputs_sha256", "state"}` after every round that ended with a split; a rerun with the same hashes
+//!   resumes from it.
+
+use std::path::PathBuf;
+
+use crate::artefacts::checkpoint;
+use crate::artefacts::ingest::Ingested;
+use crate::artefacts::object::{MATERIALS_FILE, read_result as read_object_result};
+use crate::artefacts::preprocess::Prepared;
+use crate::artefacts::triangle::{CHECKPOINT_FORMAT, RESULT_FILE, ResultFile};
+use crate::atomic_file::write_json_atomic;
+use crate::config::TriangleConfig;
+use crate::stage_contract::{StageContext, StageError, remove_if_present};
+use optim::triangle::{RESULT_FORMAT, RoundInputs, TriangleError, TriangleSettings, TriangleState};
+
+/// Runs the stage.
+pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
+    let plan = ctx.plan;
+    if !plan.triangle.enabled {
+        remove_if_present(ctx.dir.join(RESULT_FILE))?;
+        checkpoint::remove(&ctx.dir)?;
+        ctx.note("disabled (triangle.enabled = false); export uses the per-object result");
+        return Ok(Vec::new());
+    }
+    let scene_data = Ingested::read(&plan.output)?;
+    let prepared = Prepared::read(&plan.output)?;
+    let materials = read_object_result(&plan.output)?;
+    let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
+    let params = materials.params_for(&ids, &plan.output.join("object").join(MATERIALS_FILE))?;
+    let specular: Vec<bool> =
+        ids.iter().map(|id| materials.objects.iter().any(|o| o.id == *id && o.model.contains("specular"))).collect();
+    let cameras = prepared.tracer_cameras();
+    let settings = plan.tracer.settings();
+    let triangle = TriangleSettings::from(&plan.triangle);
+    let inputs = RoundInputs {
+        cameras: &cameras,
+        images: &prepared.images,
+        settings: &triangle,
+        object: &plan.object,
+        tracer: &settings,
+        specular: &specular,
+    };
+    let state = match checkpoint::resumable::<TriangleState>(ctx, CHECKPOINT_FORMAT) {
+        Some(s) => {
+            ctx.note(&format!("resuming from the checkpoint after round {}", s.rounds_done));
+            s
+        }
+        None => TriangleState::from_objects(
+            scene_data.positions.clone(),
+            scene_data.normals.clone(),
+            scene_data.triangles.clone(),
+            scene_data.face_object.clone(),
+            &params,
+        )
+        .map_err(triangle_err)?,
+    };
+    let before = scene_data.triangles.len();
+    let mut on_round = |s: &TriangleState| -> Result<(), TriangleError> {
+        checkpoint::write(ctx, CHECKPOINT_FORMAT, s).map_err(|e| TriangleError::Checkpoint(e.to_string()))
+    };
+    let progress = ctx.progress("rounds", u64::from(plan.triangle.rounds) + 1);
+    let state = optim::triangle::run_rounds(&inputs, state, &mut on_round, progress.as_ref()).map_err(triangle_err)?;
+    drop(progress);
+    write_json_atomic(&ctx.dir.join(RESULT_FILE), &ResultFile { format: RESULT_FORMAT.into(), state: state.clone() })?;
+    checkpoint::remove(&ctx.dir)?;
+    ctx.note(&format!("{before} → {} triangles", state.triangles.len()));
+    Ok(vec![PathBuf::from("triangle").join(RESULT_FILE)])
+}
+
+impl From<&TriangleConfig> for TriangleSettings {
+    /// The optimiser's settings from the `[triangle]` table (`enabled` is the stage's own).
+    fn from(c: &TriangleConfig) -> Self {
+        Self {
+            rounds: c.rounds,
+            fit_steps: c.fit_steps,
+            spp: c.spp,
+            adam_iterations: c.adam_iterations,
+            adam_lr: c.adam_lr,
+            smoothness: c.smoothness,
+            split_significance: c.split_significance,
+            split_contrast: c.split_contrast,
+            min_pixels: c.min_pixels,
+            max_triangles: c.max_triangles,
+            seed: c.seed,
+        }
+    }
+}
+
+fn triangle_err(e: TriangleError) -> StageError {
+    StageError::Triangle(e)
+}
