@@ -25,8 +25,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IngestError> {
         .to_string_lossy()
         .into_owned();
     let tmp = dir.join(format!(".{file_name}.tmp.{}.{}", std::process::id(), COUNTER.fetch_add(1, Ordering::Relaxed)));
-    let result =
-        write_and_sync(&tmp, bytes).and_then(|()| fs::rename(&tmp, path).map_err(|e| IngestError::io(path, e)));
+    let result = injected_fault(path)
+        .and_then(|()| write_and_sync(&tmp, bytes, path))
+        .and_then(|()| fs::rename(&tmp, path).map_err(|e| IngestError::io(path, e)));
     if result.is_err() {
         // Best effort: the temporary file may not even exist if creating it failed.
         let _ = fs::remove_file(&tmp);
@@ -40,8 +41,28 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IngestError> {
     Ok(())
 }
 
-fn write_and_sync(tmp: &Path, bytes: &[u8]) -> Result<(), IngestError> {
-    let mut f = OpenOptions::new().write(true).create_new(true).open(tmp).map_err(|e| IngestError::io(tmp, e))?;
-    f.write_all(bytes).map_err(|e| IngestError::io(tmp, e))?;
-    f.sync_all().map_err(|e| IngestError::io(tmp, e))
+/// Errors name `path`, the file being written, not its temporary sibling.
+fn write_and_sync(tmp: &Path, bytes: &[u8], path: &Path) -> Result<(), IngestError> {
+    let mut f = OpenOptions::new().write(true).create_new(true).open(tmp).map_err(|e| IngestError::io(path, e))?;
+    f.write_all(bytes).map_err(|e| IngestError::io(path, e))?;
+    f.sync_all().map_err(|e| IngestError::io(path, e))
+}
+
+/// With the `fault-injection` feature: a full disk (ENOSPC) for paths containing `IPT_FAULT_WRITE`.
+#[cfg(feature = "fault-injection")]
+fn injected_fault(path: &Path) -> Result<(), IngestError> {
+    /// ENOSPC on Linux: what a write to a full file system returns.
+    const ENOSPC: i32 = 28;
+    match std::env::var("IPT_FAULT_WRITE") {
+        Ok(s) if !s.is_empty() && path.to_string_lossy().contains(&s) => {
+            Err(IngestError::io(path, std::io::Error::from_raw_os_error(ENOSPC)))
+        }
+        _ => Ok(()),
+    }
+}
+
+#[cfg(not(feature = "fault-injection"))]
+#[allow(clippy::unnecessary_wraps)]
+fn injected_fault(_path: &Path) -> Result<(), IngestError> {
+    Ok(())
 }

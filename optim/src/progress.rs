@@ -26,6 +26,11 @@ pub trait Progress: Sync {
     fn note(&self, line: &str) {
         let _ = line;
     }
+    /// True once the caller wants the run to stop (e.g. on SIGINT). A fit asks at every step boundary, hands
+    /// out a checkpoint of the last finished step and returns its `Interrupted` error.
+    fn stop_requested(&self) -> bool {
+        false
+    }
 }
 
 /// Reports nothing.

@@ -27,8 +27,18 @@ fn main() -> ExitCode {
         .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()))
         .with_writer(std::io::stderr)
         .init();
-    match execute(cli) {
+    let signals = terminal::Signals::install();
+    match execute(cli, &signals) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if signals.received().is_some() => {
+            let (name, code) = signals.received().unwrap_or(("a signal", 130));
+            eprintln!(
+                "interrupted by {name}: finished stages and the last checkpoint are kept; run the same command \
+                 again to resume ({})",
+                one_line(&e.to_string())
+            );
+            ExitCode::from(code)
+        }
         Err(e) => {
             let code = if e.chain().any(is_bad_config) { 2 } else { 1 };
             // Our error types print their causes in their own message, so the top level is the whole story.
@@ -38,14 +48,14 @@ fn main() -> ExitCode {
     }
 }
 
-fn execute(cli: Cli) -> anyhow::Result<()> {
+fn execute(cli: Cli, signals: &terminal::Signals) -> anyhow::Result<()> {
     match cli.command {
         Command::Run(args) => {
             let plan = workflow::plan::Plan::load(&args.config, &args.set)?;
             // Checked before any stage runs; the kernels in use decide how hits round (ARCHITECTURE.md).
             eprintln!("embree: {}", tracer::embree::device_info()?);
             let opts = workflow::runner::RunOptions { from: args.from, until: args.until };
-            let terminal = Terminal::new(&plan.output);
+            let terminal = Terminal::new(&plan.output, signals.clone());
             workflow::runner::run(&plan, opts, &mut workflow::stages::Stages, &terminal)?;
             let materials = plan.output.join("materials.json");
             let report = plan.output.join("export").join("report.html");

@@ -8,7 +8,8 @@
 use std::fs::File;
 use std::io::{IsTerminal, Write};
 use std::path::Path;
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -19,27 +20,59 @@ use workflow::stage_contract::Reporter;
 /// minutes, rare enough that a log stays readable (one line per step per ten seconds).
 const LOG_EVERY: Duration = Duration::from_secs(10);
 
+/// SIGINT and SIGTERM as flags. The first one asks the run to stop at its next step boundary (with a
+/// checkpoint); a second one of the same kind ends the process at once (the signal's default action).
+#[derive(Debug, Clone, Default)]
+pub struct Signals {
+    int: Arc<AtomicBool>,
+    term: Arc<AtomicBool>,
+}
+
+impl Signals {
+    /// Installs the handlers; without them (an error registering) a signal keeps its default action.
+    pub fn install() -> Self {
+        let s = Self::default();
+        for (sig, flag) in [(signal_hook::consts::SIGINT, &s.int), (signal_hook::consts::SIGTERM, &s.term)] {
+            let _ = signal_hook::flag::register_conditional_default(sig, Arc::clone(flag));
+            let _ = signal_hook::flag::register(sig, Arc::clone(flag));
+        }
+        s
+    }
+
+    /// The signal received, if any, with the exit code it gives (128 + its number, as shells report it).
+    pub fn received(&self) -> Option<(&'static str, u8)> {
+        if self.int.load(Ordering::Relaxed) {
+            Some(("SIGINT", 130))
+        } else if self.term.load(Ordering::Relaxed) {
+            Some(("SIGTERM", 143))
+        } else {
+            None
+        }
+    }
+}
+
 /// Stage messages and progress for a terminal and `run.log`.
 #[derive(Debug)]
 pub struct Terminal {
     log: Option<Mutex<File>>,
     tty: bool,
+    signals: Signals,
 }
 
 impl Terminal {
     /// Appends to `<output>/run.log` (created with the directory); without a writable output directory the
     /// messages still reach stderr.
-    pub fn new(output: &Path) -> Self {
+    pub fn new(output: &Path, signals: Signals) -> Self {
         let log = std::fs::create_dir_all(output)
             .and_then(|()| std::fs::OpenOptions::new().create(true).append(true).open(output.join("run.log")))
             .ok()
             .map(Mutex::new);
-        Self { log, tty: std::io::stderr().is_terminal() }
+        Self { log, tty: std::io::stderr().is_terminal(), signals }
     }
 
     /// Messages to stderr only (commands without an output directory).
     pub fn stderr_only() -> Self {
-        Self { log: None, tty: std::io::stderr().is_terminal() }
+        Self { log: None, tty: std::io::stderr().is_terminal(), signals: Signals::default() }
     }
 
     fn log_line(&self, line: &str) {
@@ -71,6 +104,10 @@ impl Reporter for Terminal {
             started: Instant::now(),
             last_logged: Mutex::new(Instant::now()),
         })
+    }
+
+    fn stop_requested(&self) -> bool {
+        self.signals.received().is_some()
     }
 }
 
@@ -143,6 +180,10 @@ impl optim::Progress for Step<'_> {
     fn note(&self, line: &str) {
         self.bar.suspend(|| eprintln!("{line}"));
         self.owner.log_line(line);
+    }
+
+    fn stop_requested(&self) -> bool {
+        self.owner.stop_requested()
     }
 }
 

@@ -58,6 +58,8 @@ pub enum RunError {
         #[source]
         source: ManifestError,
     },
+    #[error("interrupted before stage `{stage}`")]
+    Interrupted { stage: StageId },
     #[error("stage `{stage}` failed: {source}")]
     Stage {
         stage: StageId,
@@ -111,6 +113,9 @@ pub fn run(
             announce(reporter, stage, "skipped", &format!("{stage} stage not implemented yet"));
             outcomes.push((stage, StageOutcome::NotImplemented));
             continue;
+        }
+        if reporter.stop_requested() {
+            return Err(RunError::Interrupted { stage });
         }
         let config_sha256 = manifest::sha256_json(&plan.stage_config(stage));
         let inputs = stage_inputs(plan, stage, exec)?;

@@ -16,6 +16,11 @@ pub trait Reporter: Sync {
     /// A progress indicator for a long step of `stage` with `total` steps; `what` names the step. The step is
     /// over when the returned value is dropped.
     fn progress(&self, stage: StageId, what: &str, total: u64) -> Box<dyn optim::Progress + '_>;
+    /// True once the user wants the run to stop (a signal): the runner starts no further stage and the
+    /// optimisation stages stop at their next step boundary with a checkpoint.
+    fn stop_requested(&self) -> bool {
+        false
+    }
 }
 
 /// Reports nothing (tests, library callers that only want the files).
@@ -62,6 +67,12 @@ impl StageContext<'_> {
         self.reporter.note(self.stage, line);
     }
 
+    /// True once the user wants the run to stop.
+    #[must_use]
+    pub fn stop_requested(&self) -> bool {
+        self.reporter.stop_requested()
+    }
+
     /// A progress indicator for a long step of this stage.
     #[must_use]
     pub fn progress(&self, what: &str, total: u64) -> Box<dyn optim::Progress + '_> {
@@ -105,6 +116,9 @@ pub enum StageError {
     Triangle(optim::triangle::TriangleError),
     #[error(transparent)]
     Export(#[from] crate::export::ExportError),
+    /// The user asked the run to stop (a signal) before the stage finished.
+    #[error("interrupted")]
+    Interrupted,
 }
 
 /// Removes `path`; a file that is already gone is not an error.

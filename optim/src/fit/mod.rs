@@ -157,6 +157,8 @@ pub enum FitError {
     BadCheckpoint(String),
     #[error("fit: writing a checkpoint: {0}")]
     Checkpoint(String),
+    #[error("fit: interrupted after step {iteration}; its checkpoint is written")]
+    Interrupted { iteration: u32 },
     #[error("fit: non-finite {what} at step {iteration}")]
     NonFinite { what: &'static str, iteration: u32 },
     #[error(

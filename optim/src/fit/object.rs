@@ -240,9 +240,18 @@ pub fn fit_objects(
         state.discarded_samples = samples.discarded();
         progress.set_position(u64::from(it));
         let phase_end = it == s.iterations || it == total;
-        if (s.checkpoint_every > 0 && it % s.checkpoint_every == 0) || phase_end {
+        let stop = progress.stop_requested();
+        if (s.checkpoint_every > 0 && it % s.checkpoint_every == 0) || phase_end || stop {
             on_checkpoint(&state)?;
         }
+        if stop {
+            return Err(FitError::Interrupted { iteration: it });
+        }
+    }
+    // Model selection keeps no checkpoint of its own: the one written after the last step is where a rerun
+    // resumes.
+    if progress.stop_requested() {
+        return Err(FitError::Interrupted { iteration: state.iteration });
     }
 
     let x = average_refinement(&state, s);

@@ -150,6 +150,8 @@ pub enum TriangleError {
     Input(String),
     #[error("triangle fit: writing a checkpoint: {0}")]
     Checkpoint(String),
+    #[error("triangle fit: interrupted after round {rounds_done}; its checkpoint is written")]
+    Interrupted { rounds_done: u32 },
     /// More than the object fit's bound ([`crate::fit::samples::MAX_DISCARDED_FRACTION`]) of a round's path
     /// samples were discarded as non-finite.
     #[error(
@@ -379,6 +381,9 @@ pub fn run_rounds(
         state.rounds_done += 1;
         progress.set_position(u64::from(state.rounds_done));
         on_round(&state)?;
+        if progress.stop_requested() {
+            return Err(TriangleError::Interrupted { rounds_done: state.rounds_done });
+        }
     }
     Ok(state)
 }

@@ -42,6 +42,9 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let written: Vec<Vec<PathBuf>> = chosen
         .par_iter()
         .map(|v| {
+            if bar.stop_requested() {
+                return Err(StageError::Interrupted);
+            }
             let (camera, img) = ingest::photo::prepare_view(&v.image_path, &v.camera, &opts)?;
             ingest::photo::write_cached(&ctx.dir, &v.name, &camera, &img)?;
             bar.inc(1);
