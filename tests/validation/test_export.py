@@ -36,7 +36,7 @@ VALIDATOR = ROOT / "node_modules" / "gltf-validator"
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
     out = tmp_path_factory.mktemp("export")
-    proc = subprocess.run([str(example_binary("pipeline", "export_fixture")), str(out)], check=True, capture_output=True, text=True)
+    proc = subprocess.run([str(example_binary("workflow", "export_fixture")), str(out)], check=True, capture_output=True, text=True)
     return out, json.loads(proc.stdout)
 
 
