@@ -1,5 +1,5 @@
 # The two commands the README opens with. Each runs scripts/setup first (idempotent, ~1 s when done).
-.PHONY: setup demo test lint rust-test isa-test validation bench
+.PHONY: setup demo test lint rust-test isa-test reliability-test validation bench
 
 CARGO ?= cargo
 PY := deps/venv/bin/python
@@ -13,8 +13,9 @@ demo: setup
 	target/release/pipeline run configs/demo.toml
 
 ## Builds and runs every Rust test (natively, then the tracer's and the end-to-end tests again under Embree's
-## SSE4.2, AVX and AVX2 kernels) and the Python validation suite; non-zero exit on any failure.
-test: setup lint rust-test isa-test validation
+## SSE4.2, AVX and AVX2 kernels), the CI-sized kill and corruption runs, and the Python validation suite;
+## non-zero exit on any failure.
+test: setup lint rust-test isa-test reliability-test validation
 
 lint:
 	$(CARGO) fmt --all --check
@@ -26,6 +27,12 @@ rust-test:
 # Embree rounds hits differently per instruction set: the tests must hold under every one (scripts/test-isa).
 isa-test: rust-test
 	scripts/test-isa
+
+# Kill anywhere and corrupt anything, CI-sized (scripts/reliability; the full runs and their figures are in
+# docs/reliability.md): a tiny run of the demo scan killed at 5 random moments, and 6 of its files damaged.
+reliability-test: rust-test
+	scripts/reliability kill --config tests/reliability/tiny.toml --bin target/debug/pipeline --kills 5 --seed 1
+	scripts/reliability corrupt --config tests/reliability/tiny.toml --bin target/debug/pipeline --limit 6 --seed 1
 
 # The validation suite runs our example binaries, which `cargo test` has built into target/debug/examples.
 validation:
