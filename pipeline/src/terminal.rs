@@ -127,11 +127,15 @@ impl Step<'_> {
             return;
         }
         *last = Instant::now();
-        let line = format!(
+        let mut line = format!(
             "{}: {}",
             self.label,
             position_line(self.bar.position(), self.bar.length(), self.started.elapsed())
         );
+        let message = self.bar.message();
+        if !message.is_empty() {
+            line.push_str(&format!(" ({message})"));
+        }
         if !self.owner.tty {
             eprintln!("{line}");
         }

@@ -163,7 +163,8 @@ pub fn fit_objects(
     }
     let free: Vec<bool> = sets.train_per_object.iter().map(|&n| n >= MIN_PIXELS).collect();
     let total = s.iterations + s.refine_steps;
-    progress.set_length(u64::from(total));
+    // One step per iteration, then one per object in model selection (its lobe trials dominate its cost).
+    progress.set_length(u64::from(total) + k_count as u64);
 
     let mut state = match resume {
         Some(st) => {
@@ -255,7 +256,8 @@ pub fn fit_objects(
     }
 
     let x = average_refinement(&state, s);
-    let (x, per_object) = select::choose_models(&ctx, s, &sets, &x, &free)?;
+    progress.set_message("model selection");
+    let (x, per_object) = select::choose_models(&ctx, s, &sets, &x, &free, progress, u64::from(total))?;
     // No non-finite parameter is ever clamped away silently: like every step above, the model selection's
     // result is checked and a non-finite value aborts the fit (tests/stability_extremes.rs). Non-finite path
     // samples are the one thing discarded, by the tracer, and they are counted and bounded below.

@@ -105,13 +105,16 @@ fn target(s: &Sample) -> [f64; 3] {
     [f64::from(s.target.x), f64::from(s.target.y), f64::from(s.target.z)]
 }
 
-/// Decides every object's model; returns the final parameters and the decisions.
+/// Decides every object's model; returns the final parameters and the decisions. Reports one step per
+/// object to `progress`, at positions `position + 1 ..= position + objects`.
 pub fn choose_models(
     ctx: &Ctx<'_>,
     s: &ObjectFitSettings,
     sets: &PixelSets,
     x_fit: &[f64],
     free: &[bool],
+    progress: &dyn crate::Progress,
+    position: u64,
 ) -> Result<(Vec<f64>, Vec<ObjectModel>), FitError> {
     let k_count = x_fit.len() / PER_OBJECT;
     let mut x = x_fit.to_vec();
@@ -161,6 +164,7 @@ pub fn choose_models(
             }
             xt[idx(k, ROUGHNESS)] = best.roughness;
             xt[idx(k, SPECULAR)] = best.specular;
+            progress.set_position(position + k as u64 + 1);
         }
         // Common random numbers for both renders: the paired differences then carry little path noise.
         let key = key::SELECT_LOBE_TEST;
