@@ -42,6 +42,7 @@ fn validate(inputs: &FitInputs<'_>) -> Result<(), FitError> {
     positive("solve_pixels", s.solve_pixels)?;
     positive("solve_spp", s.solve_spp)?;
     positive("holdout_spp", s.holdout_spp)?;
+    positive("holdout_pixels", s.holdout_pixels)?;
     if !(s.lr.is_finite() && s.lr > 0.0) {
         return Err(FitError::Setting { key: "lr", message: format!("{} is not a positive number", s.lr) });
     }
@@ -157,7 +158,15 @@ pub fn fit_objects(
     };
     let ctx =
         Ctx { scene: inputs.scene, cameras: inputs.cameras, settings: inputs.tracer, seed: s.seed, samples: &samples };
-    let sets = pixels::collect(inputs.scene, inputs.cameras, inputs.images, k_count, s.holdout_fraction, s.seed);
+    let sets = pixels::collect(
+        inputs.scene,
+        inputs.cameras,
+        inputs.images,
+        k_count,
+        s.holdout_fraction,
+        s.holdout_pixels as usize,
+        s.seed,
+    );
     if sets.train.is_empty() {
         return Err(FitError::NoPixels);
     }

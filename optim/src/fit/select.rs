@@ -118,9 +118,17 @@ pub fn choose_models(
 ) -> Result<(Vec<f64>, Vec<ObjectModel>), FitError> {
     let k_count = x_fit.len() / PER_OBJECT;
     let mut x = x_fit.to_vec();
-    // Without held-out pixels (holdout_fraction = 0) the tests run on training pixels and say so.
-    let (test, test_name): (&[Sample], &str) =
-        if sets.holdout.is_empty() { (&sets.train, "training") } else { (&sets.holdout, "held-out") };
+    // Without held-out pixels (holdout_fraction = 0) the tests run on training pixels, within the same budget
+    // per object, and say so.
+    let budget = s.holdout_pixels as usize;
+    let capped_train;
+    let (test, test_name): (&[Sample], &str) = if sets.holdout.is_empty() {
+        let rank = |t: &Sample| streams::uniform(ctx.seed, draw::HOLDOUT, streams::pixel_key(t.pixel), 1);
+        capped_train = super::pixels::cap_per_object(sets.train.clone(), budget, rank).0;
+        (&capped_train, "training")
+    } else {
+        (&sets.holdout, "held-out")
+    };
     let pix: Vec<PixelRef> = test.iter().map(|t| t.pixel).collect();
     let mean_target = test.iter().map(|t| l1(target(t), [0.0; 3])).sum::<f64>() / test.len().max(1) as f64;
     let mut why: Vec<Vec<String>> = vec![Vec::new(); k_count];
@@ -141,7 +149,10 @@ pub fn choose_models(
             .chain(if sets.holdout.is_empty() {
                 Vec::new()
             } else {
-                sets.train.iter().filter(|t| !in_profile(t)).copied().collect()
+                // Within the same budget per object as the held-out pixels.
+                let rank = |t: &Sample| streams::uniform(ctx.seed, draw::PROFILE, streams::pixel_key(t.pixel), 1);
+                let half: Vec<Sample> = sets.train.iter().filter(|t| !in_profile(t)).copied().collect();
+                super::pixels::cap_per_object(half, budget, rank).0
             })
             .collect();
         let mut xt = x.clone();

@@ -58,6 +58,9 @@ pub struct ObjectFitSettings {
     pub refine_steps: u32,
     /// Fraction of the valid pixels held out from every fit, used only to decide each object's model.
     pub holdout_fraction: f64,
+    /// Largest number of held-out pixels per object (and of the training pixels that join an object's lobe
+    /// test): the decisions need a sample of fixed size, not a fraction of the photos.
+    pub holdout_pixels: u32,
     /// Paths per pixel of the held-out renders that decide each object's model: the decision compares the
     /// residuals of two renders pixel by pixel, so their own noise must be well below the effect tested.
     pub holdout_spp: u32,
@@ -87,6 +90,7 @@ impl Default for ObjectFitSettings {
             solve_spp: 128,
             refine_steps: 8,
             holdout_fraction: 0.1,
+            holdout_pixels: 2048,
             holdout_spp: 512,
             try_specular: true,
             specular_trial_steps: 4,
