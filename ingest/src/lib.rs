@@ -20,4 +20,4 @@ pub mod transforms;
 pub use atomic::write_atomic;
 pub use error::IngestError;
 pub use mesh::Mesh;
-pub use scan::{GroupBy, ObjectInfo, Scan, ScanFormat, View, load_scan, objects_seen_by_no_camera};
+pub use scan::{GroupBy, ObjectInfo, Removed, Scan, ScanFormat, View, load_scan, objects_seen_by_no_camera};

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::image_io::{DecodedImage, read_image};
+use super::image_io::{DecodedImage, read_image_checked};
 use super::{LinearImage, PhotoError};
 use crate::camera::Camera;
 
@@ -137,7 +137,7 @@ pub fn read_cached(dir: &Path, name: &str) -> Result<(Camera, LinearImage), Phot
         });
     }
     let exr_path = dir.join(&entry.image);
-    let img = match read_image(&exr_path)? {
+    let img = match read_image_checked(&exr_path, Some((entry.width, entry.height)))?.0 {
         DecodedImage::Linear(img) => img,
         DecodedImage::Display(_) => {
             return Err(PhotoError::Unsupported { path: exr_path, message: "cached image is not an EXR".into() });

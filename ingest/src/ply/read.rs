@@ -54,9 +54,12 @@ fn check_counts_fit(path: &Path, header: &Header, available: usize) -> Result<()
         let before = needed;
         // Binary: a row takes at least its fixed-size scalars and list counts. ASCII: every property is at least
         // one character plus one separator.
+        // A face's `vertex_indices` list holds at least 3 items (fewer is refused when read), so a face row takes
+        // at least 3 more values; counting them keeps the per-face buffers within a few times the input size.
+        let index_items = if e.name == "face" { 3 * usize::from(e.props.iter().any(is_vertex_indices)) } else { 0 };
         let min_row = match header.encoding {
-            Encoding::Ascii => 2 * e.props.len(),
-            _ => e.min_binary_row(),
+            Encoding::Ascii => 2 * (e.props.len() + index_items),
+            _ => e.min_binary_row() + index_items * vertex_index_item_size(e),
         };
         let element_bytes = e.count.checked_mul(min_row);
         needed = match element_bytes.and_then(|b| needed.checked_add(b)) {
@@ -83,6 +86,20 @@ fn check_counts_fit(path: &Path, header: &Header, available: usize) -> Result<()
         }
     }
     Ok(())
+}
+
+/// True for the face property read as the vertex index list (the first list named `vertex_indices` or
+/// `vertex_index`).
+fn is_vertex_indices(p: &super::header::Property) -> bool {
+    matches!(p.kind, PropertyKind::List { .. }) && (p.name == "vertex_indices" || p.name == "vertex_index")
+}
+
+/// Size in bytes of one item of `e`'s vertex index list (0 without one).
+fn vertex_index_item_size(e: &Element) -> usize {
+    e.props.iter().find(|p| is_vertex_indices(p)).map_or(0, |p| match p.kind {
+        PropertyKind::List { item, .. } => item.size(),
+        PropertyKind::Scalar(_) => 0,
+    })
 }
 
 /// Why one value could not be read.
@@ -142,15 +159,22 @@ impl Source for Ascii<'_> {
     fn scalar(&mut self, t: ScalarType) -> Result<f64, ValueError> {
         let tok = self.tokens.next().ok_or(ValueError::Eof)?;
         if t.is_integer() {
-            if let Ok(v) = tok.parse::<i64>() {
+            let v = match tok.parse::<i64>() {
                 // i64 → f64 is exact for every value a PLY integer type can hold (at most 32 bits).
-                return Ok(v as f64);
-            }
-            // Some writers print integers as "3.0"; accept integral floats.
-            return match tok.parse::<f64>() {
-                Ok(v) if v.fract() == 0.0 => Ok(v),
-                _ => Err(ValueError::Bad(format!("{tok:?} is not an integer"))),
+                Ok(v) => v as f64,
+                // Some writers print integers as "3.0"; accept integral floats.
+                Err(_) => match tok.parse::<f64>() {
+                    Ok(v) if v.fract() == 0.0 => v,
+                    _ => return Err(ValueError::Bad(format!("{tok:?} is not an integer"))),
+                },
             };
+            // A binary file cannot hold a value outside its declared type; an ASCII one must not either, or a
+            // later cast to that type would silently clamp it.
+            let (lo, hi) = t.integer_range();
+            if !(lo..=hi).contains(&v) {
+                return Err(ValueError::Bad(format!("{tok:?} is outside the range of its type {t:?} ({lo}..={hi})")));
+            }
+            return Ok(v);
         }
         tok.parse::<f64>().map_err(|_| ValueError::Bad(format!("{tok:?} is not a number")))
     }
@@ -189,6 +213,11 @@ fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S) -> Result<Ply
     if vertex_count > u32::MAX as usize {
         return Err(IngestError::format(path, format!("{vertex_count} vertices exceed the 2^32 vertex limit")));
     }
+    for name in ["vertex", "face"] {
+        if header.elements.iter().filter(|e| e.name == name).count() > 1 {
+            return Err(IngestError::format(path, format!("PLY header declares more than one `{name}` element")));
+        }
+    }
     let mut positions = Vec::new();
     let mut normals = None;
     let mut faces = None;
@@ -200,6 +229,8 @@ fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S) -> Result<Ply
                 normals = n;
             }
             "face" => faces = Some(read_faces(path, element, vertex_count, src)?),
+            // An element without properties has rows of zero bytes: nothing to skip, however large its count.
+            _ if element.props.is_empty() => {}
             _ => {
                 for i in 0..element.count {
                     for prop in &element.props {
@@ -280,6 +311,9 @@ fn read_vertices<S: Source>(path: &Path, element: &Element, src: &mut S) -> Resu
         }
         if !p.iter().all(|v| v.is_finite()) {
             return Err(IngestError::element(path, "vertex", i, format!("position {p:?} is not finite (NaN or Inf)")));
+        }
+        if want_normals && !n.iter().all(|v| v.is_finite()) {
+            return Err(IngestError::element(path, "vertex", i, format!("normal {n:?} is not finite (NaN or Inf)")));
         }
         positions.push(Vec3::from_array(p));
         if want_normals {
