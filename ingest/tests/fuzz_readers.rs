@@ -99,3 +99,67 @@ fn harness_detects_each_failure_kind() {
         .contains("allocated")
     );
 }
+
+/// Writes the inputs behind the bugs fixed when the fuzzer was introduced (found by it or by review) into
+/// `tests/fuzz/regressions/<reader>/found-*.bin`, where `regressions_replay` keeps checking them. Run once with
+/// `cargo test -p ingest --test fuzz_readers -- --ignored write_found_regressions`.
+#[test]
+#[ignore = "writes files into the source tree"]
+fn write_found_regressions() {
+    use fuzz_support::readers::{corpus, reader};
+    let save = |r: &str, name: &str, bytes: &[u8]| {
+        let dir = fuzz_support::regression_dir(r);
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join(format!("found-{name}.bin")), bytes).unwrap();
+    };
+    let jpeg = corpus(&reader("photo"))[3].clone();
+    let hdr = corpus(&reader("photo"))[7].clone();
+    for r in ["photo", "image_header"] {
+        // zune-jpeg's message ends with a newline.
+        save(r, "jpeg-truncated-multiline-error", &jpeg[..300]);
+        // The image crate quotes the unknown leading bytes, control characters included.
+        let mut garbled = hdr.clone();
+        garbled[0] = b'3';
+        garbled[1] = b'2';
+        garbled.splice(2..2, b"\r\r\0\t".iter().copied());
+        save(r, "unknown-format-control-bytes", &garbled);
+    }
+    save("mtl", "kd-one-number-panics-tobj", b"newmtl white\nKd 0.8\nnewmtl red\nKs\n");
+    save("obj", "normal-index-overflows-tobj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//-2147483648\n");
+    save("obj", "zero-index", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n");
+    save(
+        "ply",
+        "empty-element-huge-count",
+        b"ply\nformat ascii 1.0\nelement junk 18446744073709551615\nelement vertex 3\nproperty float x\n\
+property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+    );
+    save(
+        "ply",
+        "second-vertex-element",
+        b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+element face 1\nproperty list uchar int vertex_indices\nelement vertex 1\nproperty float x\nproperty float y\n\
+property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n5 5 5\n",
+    );
+    save(
+        "ply",
+        "uchar-out-of-range",
+        b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+element face 1\nproperty list uchar int vertex_indices\nproperty uchar segment_id\nend_header\n\
+0 0 0\n1 0 0\n0 1 0\n3 0 1 2 1e38\n",
+    );
+    save("matterport_intrinsics", "width-beyond-u32", b"1e20 480 500 500 320 240 0 0 0 0 0\n");
+    save(
+        "transforms",
+        "zero-field-of-view",
+        br#"{"camera_angle_x": 0, "frames": [{"file_path": "a.png",
+"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]}"#,
+    );
+    save(
+        "transforms",
+        "line-break-in-file-path",
+        br#"{"fl_x": 10, "frames": [{"file_path": "a\nb.png",
+"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]}"#,
+    );
+    save("colmap_cameras", "zero-width", b"1 PINHOLE 0 7 10 10 6.5 3.5\n");
+}

@@ -193,8 +193,57 @@ fn linear_validity(rgb: &mut [f32], mask_channel: Option<&[f32]>) -> (Vec<u8>, P
 
 /// Decodes an OpenEXR file's first layer: channels R, G, B (or a single Y, replicated) plus an optional
 /// `mask` channel (our cache files).
+/// Pixels a single EXR tile may hold even when the image is smaller: OpenEXR's default tile is 64 × 64.
+const EXR_TILE_PIXELS_MIN: usize = 64 * 64;
+
+/// Most scan lines in one EXR block (DWAB compression; the others use 1 to 32).
+const EXR_MAX_LINES_PER_BLOCK: usize = 256;
+
+/// Bytes per pixel the block bound allows: four 32-bit channels (R, G, B and our cache's mask).
+const EXR_BLOCK_BYTES_PER_PIXEL: usize = 16;
+
+/// Refuses EXR headers whose parts are larger than the first part (the image read), or whose blocks hold more
+/// bytes than the larger of that image, a full-width block of [`EXR_MAX_LINES_PER_BLOCK`] lines and a tile of
+/// [`EXR_TILE_PIXELS_MIN`] pixels, at [`EXR_BLOCK_BYTES_PER_PIXEL`]. The `exr` crate
+/// reserves a whole block's bytes, as the header declares it, before reading it; without this check a few
+/// hundred bytes of header claim gigabytes.
+fn check_exr_geometry(path: &Path, bytes: &[u8]) -> Result<(), PhotoError> {
+    let unsupported = |message: String| PhotoError::Unsupported { path: path.to_path_buf(), message };
+    let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(bytes), false)
+        .map_err(|e| PhotoError::Decode { path: path.to_path_buf(), message: one_line(e) })?;
+    let first = meta.headers.first().ok_or_else(|| unsupported("EXR has no layers".into()))?;
+    let image_pixels = first.layer_size.area();
+    let limit = image_pixels
+        .max(first.layer_size.0.saturating_mul(EXR_MAX_LINES_PER_BLOCK))
+        .max(EXR_TILE_PIXELS_MIN)
+        .saturating_mul(EXR_BLOCK_BYTES_PER_PIXEL);
+    for (i, h) in meta.headers.iter().enumerate() {
+        if h.layer_size.area() > image_pixels {
+            return Err(unsupported(format!(
+                "EXR part {i} ({}x{}) is larger than the image of part 0 ({}x{})",
+                h.layer_size.0, h.layer_size.1, first.layer_size.0, first.layer_size.1
+            )));
+        }
+        let block = match h.blocks {
+            exr::meta::BlockDescription::Tiles(t) => t.tile_size.0.checked_mul(t.tile_size.1),
+            exr::meta::BlockDescription::ScanLines => h.layer_size.0.checked_mul(h.compression.scan_lines_per_block()),
+        };
+        let block_bytes = block.and_then(|b| b.checked_mul(h.channels.bytes_per_pixel));
+        if block_bytes.is_none_or(|b| b > limit) {
+            return Err(unsupported(format!(
+                "EXR part {i} declares blocks of {} bytes, more than the {limit} an image of {}x{} needs",
+                block_bytes.map_or("more than 2^64".to_string(), |b| b.to_string()),
+                first.layer_size.0,
+                first.layer_size.1
+            )));
+        }
+    }
+    Ok(())
+}
+
 fn read_exr_bytes(path: &Path, bytes: &[u8]) -> Result<(LinearImage, PixelReport), PhotoError> {
     use exr::prelude::*;
+    check_exr_geometry(path, bytes)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

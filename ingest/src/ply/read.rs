@@ -36,13 +36,13 @@ pub fn read_ply_bytes(path: &Path, bytes: &[u8]) -> Result<PlyRead, IngestError>
     let data = &bytes[header.data_offset..];
     check_counts_fit(path, &header, data.len())?;
     match header.encoding {
-        Encoding::BinaryLittleEndian => read_body(path, &header, &mut Binary::<false> { data, pos: 0 }),
-        Encoding::BinaryBigEndian => read_body(path, &header, &mut Binary::<true> { data, pos: 0 }),
+        Encoding::BinaryLittleEndian => read_body(path, &header, data.len(), &mut Binary::<false> { data, pos: 0 }),
+        Encoding::BinaryBigEndian => read_body(path, &header, data.len(), &mut Binary::<true> { data, pos: 0 }),
         Encoding::Ascii => {
             let text = std::str::from_utf8(data).map_err(|e| {
                 IngestError::format(path, format!("ASCII PLY body is not text (byte {})", e.valid_up_to()))
             })?;
-            read_body(path, &header, &mut Ascii { tokens: text.split_ascii_whitespace() })
+            read_body(path, &header, data.len(), &mut Ascii { tokens: text.split_ascii_whitespace() })
         }
     }
 }
@@ -54,13 +54,7 @@ fn check_counts_fit(path: &Path, header: &Header, available: usize) -> Result<()
         let before = needed;
         // Binary: a row takes at least its fixed-size scalars and list counts. ASCII: every property is at least
         // one character plus one separator.
-        // A face's `vertex_indices` list holds at least 3 items (fewer is refused when read), so a face row takes
-        // at least 3 more values; counting them keeps the per-face buffers within a few times the input size.
-        let index_items = if e.name == "face" { 3 * usize::from(e.props.iter().any(is_vertex_indices)) } else { 0 };
-        let min_row = match header.encoding {
-            Encoding::Ascii => 2 * (e.props.len() + index_items),
-            _ => e.min_binary_row() + index_items * vertex_index_item_size(e),
-        };
+        let min_row = min_row(header.encoding, e, 0);
         let element_bytes = e.count.checked_mul(min_row);
         needed = match element_bytes.and_then(|b| needed.checked_add(b)) {
             Some(n) => n,
@@ -86,6 +80,23 @@ fn check_counts_fit(path: &Path, header: &Header, available: usize) -> Result<()
         }
     }
     Ok(())
+}
+
+/// Fewest bytes a row of `e` takes with `items` items in its vertex index list (0 for other lists). Binary: its
+/// fixed-size scalars, list counts and those items. ASCII: every value is at least one character plus one
+/// separator.
+fn min_row(encoding: Encoding, e: &Element, items: usize) -> usize {
+    match encoding {
+        Encoding::Ascii => 2 * (e.props.len() + items),
+        _ => e.min_binary_row() + items * vertex_index_item_size(e),
+    }
+}
+
+/// How many faces of `e` the `available` bytes can hold when every face is valid (at least 3 vertex indices):
+/// the most worth reserving per-face buffers for. A file with more faces is refused while they are read.
+fn faces_that_fit(encoding: Encoding, e: &Element, available: usize) -> usize {
+    let items = if e.props.iter().any(is_vertex_indices) { 3 } else { 0 };
+    e.count.min(available / min_row(encoding, e, items).max(1))
 }
 
 /// True for the face property read as the vertex index list (the first list named `vertex_indices` or
@@ -203,7 +214,8 @@ enum Column {
     U8(Vec<u8>),
 }
 
-fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S) -> Result<PlyRead, IngestError> {
+/// Reads every element; `available` is the number of data bytes (bounds the per-face reservations).
+fn read_body<S: Source>(path: &Path, header: &Header, available: usize, src: &mut S) -> Result<PlyRead, IngestError> {
     let vertex_count = header
         .elements
         .iter()
@@ -228,7 +240,10 @@ fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S) -> Result<Ply
                 positions = p;
                 normals = n;
             }
-            "face" => faces = Some(read_faces(path, element, vertex_count, src)?),
+            "face" => {
+                let reserve = faces_that_fit(header.encoding, element, available);
+                faces = Some(read_faces(path, element, vertex_count, reserve, src)?);
+            }
             // An element without properties has rows of zero bytes: nothing to skip, however large its count.
             _ if element.props.is_empty() => {}
             _ => {
@@ -331,10 +346,12 @@ struct Faces {
     polygons: usize,
 }
 
+/// Reads the faces; per-face buffers reserve room for `reserve` faces (they grow if polygons need more).
 fn read_faces<S: Source>(
     path: &Path,
     element: &Element,
     vertex_count: usize,
+    reserve: usize,
     src: &mut S,
 ) -> Result<Faces, IngestError> {
     let face_err = |i: usize, msg: String| IngestError::element(path, "face", i, msg);
@@ -358,9 +375,9 @@ fn read_faces<S: Source>(
             PropertyKind::Scalar(t) => {
                 names.push(p.name.clone());
                 columns.push(match t {
-                    ScalarType::F32 | ScalarType::F64 => Column::F32(Vec::with_capacity(element.count)),
-                    ScalarType::U8 => Column::U8(Vec::with_capacity(element.count)),
-                    _ => Column::I32(Vec::with_capacity(element.count)),
+                    ScalarType::F32 | ScalarType::F64 => Column::F32(Vec::with_capacity(reserve)),
+                    ScalarType::U8 => Column::U8(Vec::with_capacity(reserve)),
+                    _ => Column::I32(Vec::with_capacity(reserve)),
                 });
                 FaceSlot::Column(columns.len() - 1)
             }
@@ -373,8 +390,8 @@ fn read_faces<S: Source>(
     if !item_type.is_integer() {
         return Err(IngestError::format(path, "PLY `vertex_indices` items are not an integer type"));
     }
-    let mut triangles = Vec::with_capacity(element.count);
-    let mut source_face = Vec::with_capacity(element.count);
+    let mut triangles = Vec::with_capacity(reserve);
+    let mut source_face = Vec::with_capacity(reserve);
     let mut polygons = 0usize;
     let mut poly: Vec<u32> = Vec::with_capacity(8);
     for i in 0..element.count {

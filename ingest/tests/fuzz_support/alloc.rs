@@ -59,6 +59,10 @@ pub fn clear_current_case() {
     CURRENT.with(|c| c.set(None));
 }
 
+/// When non-zero, the first armed request above this many bytes prints a backtrace (`IPT_FUZZ_TRACE_ALLOC`, set by
+/// the harness): it shows which code allocated out of proportion in a saved case.
+pub static TRACE_ABOVE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
 #[inline]
 fn record(size: usize) {
     // `try_with`: during thread teardown the thread-locals may be gone; such allocations are not a case's.
@@ -70,6 +74,20 @@ fn record(size: usize) {
     if size > HARD_CAP {
         oversize(size);
     }
+    let trace = TRACE_ABOVE.load(std::sync::atomic::Ordering::Relaxed);
+    if trace != 0 && size > trace {
+        trace_allocation(size);
+    }
+}
+
+#[cold]
+fn trace_allocation(size: usize) {
+    // Disarmed while capturing (the backtrace allocates); traced once.
+    ARMED.with(|a| a.set(false));
+    TRACE_ABOVE.store(0, std::sync::atomic::Ordering::Relaxed);
+    let bt = std::backtrace::Backtrace::force_capture();
+    let _ = writeln!(std::io::stderr(), "fuzz: allocation of {size} bytes at\n{bt}");
+    ARMED.with(|a| a.set(true));
 }
 
 #[cold]

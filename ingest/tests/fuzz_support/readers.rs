@@ -357,7 +357,35 @@ fn image_seeds() -> Vec<Vec<u8>> {
         ingest::photo::exr::encode_rgb_mask(w, h, &rgb_f, &mask).unwrap(),
         ingest::photo::exr::encode_rgb(w, h, ingest::photo::exr::Compression::Small, pixel).unwrap(),
         encode(hdr.into(), image::ImageFormat::Hdr),
+        exr_with(vec![exr_channel("Y", n)], exr::prelude::Compression::ZIP1, exr::prelude::Blocks::ScanLines),
+        exr_with(
+            vec![exr_channel("B", n), exr_channel("G", n), exr_channel("R", n)],
+            exr::prelude::Compression::PIZ,
+            exr::prelude::Blocks::Tiles(exr::prelude::Vec2(4, 4)),
+        ),
     ]
+}
+
+/// A half-float channel of `n` samples.
+fn exr_channel(name: &str, n: usize) -> exr::prelude::AnyChannel<exr::prelude::FlatSamples> {
+    let samples = (0..n).map(|i| exr::prelude::f16::from_f32(i as f32 / n as f32)).collect();
+    exr::prelude::AnyChannel::new(name, exr::prelude::FlatSamples::F16(samples))
+}
+
+/// A single-layer EXR of the photo seed size with the given channels, compression and blocks.
+fn exr_with(
+    channels: Vec<exr::prelude::AnyChannel<exr::prelude::FlatSamples>>,
+    compression: exr::prelude::Compression,
+    blocks: exr::prelude::Blocks,
+) -> Vec<u8> {
+    use exr::prelude::{AnyChannels, Encoding, Image, Layer, LayerAttributes, LineOrder, WritableImage};
+    let (w, h) = PHOTO_SIZE;
+    let encoding = Encoding { compression, blocks, line_order: LineOrder::Increasing };
+    let layer =
+        Layer::new((w as usize, h as usize), LayerAttributes::default(), encoding, AnyChannels::sort(channels.into()));
+    let mut out = Cursor::new(Vec::new());
+    Image::from_layer(layer).write().to_buffered(&mut out).unwrap();
+    out.into_inner()
 }
 
 fn run_image_header(path: &Path, bytes: &[u8]) -> Result<(), String> {
