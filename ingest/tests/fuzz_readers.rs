@@ -3,8 +3,9 @@
 //! multiple of its input at once and must not be pathologically slow (see `fuzz_support`). Saved failing cases
 //! (`tests/fuzz/regressions/`) are replayed on every run.
 //!
-//! `unsafe` is allowed in this test binary for one purpose: the counting `#[global_allocator]`
-//! (`fuzz_support::alloc`), which must implement the unsafe `GlobalAlloc` trait.
+//! `unsafe` is allowed in this test binary for two purposes: the counting `#[global_allocator]`
+//! (`fuzz_support::alloc`), which must implement the unsafe `GlobalAlloc` trait, and reading the thread's CPU
+//! time (`libc::clock_gettime`).
 #![allow(unsafe_code)]
 
 mod fuzz_support;
@@ -162,4 +163,25 @@ element face 1\nproperty list uchar int vertex_indices\nproperty uchar segment_i
 "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]}"#,
     );
     save("colmap_cameras", "zero-width", b"1 PINHOLE 0 7 10 10 6.5 3.5\n");
+}
+
+/// Reproduces one case from its seed: `IPT_FUZZ_CASE=<reader>:<seed>:<case> cargo test -p ingest --test
+/// fuzz_readers -- --ignored --nocapture reproduce_case` runs it five times, prints its outcome, times and
+/// largest allocation, and saves it under `tests/fuzz/regressions/<reader>/<seed>-<case>.bin`.
+#[test]
+#[ignore = "reproduces the case named by IPT_FUZZ_CASE"]
+fn reproduce_case() {
+    use fuzz_support::readers::{corpus, reader};
+    let spec = std::env::var("IPT_FUZZ_CASE").expect("set IPT_FUZZ_CASE=<reader>:<seed>:<case>");
+    let parts: Vec<&str> = spec.split(':').collect();
+    let [name, seed, case] = parts[..] else { panic!("IPT_FUZZ_CASE={spec:?} is not <reader>:<seed>:<case>") };
+    let r = reader(name);
+    let (seed, case) = (seed.parse().unwrap(), case.parse().unwrap());
+    let bytes = fuzz_support::case_bytes(&r, &corpus(&r), seed, case);
+    let path = (r.path)();
+    for _ in 0..5 {
+        let run = fuzz_support::run_case(&r, &path, &bytes);
+        println!("{:?} in {:?}, largest allocation {} bytes", run.outcome, run.time, run.largest_alloc);
+    }
+    println!("saved {}", fuzz_support::save_case(r.name, seed, case, &bytes).display());
 }
