@@ -69,15 +69,28 @@ struct SegGroup {
     segments: Vec<i64>,
 }
 
-fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, IngestError> {
-    let text = std::fs::read_to_string(path).map_err(|e| IngestError::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| IngestError::line(path, e.line(), format!("bad JSON: {e}")))
+fn parse_json<T: for<'de> Deserialize<'de>>(path: &Path, bytes: &[u8]) -> Result<T, IngestError> {
+    serde_json::from_slice(bytes).map_err(|e| IngestError::line(path, e.line(), format!("bad JSON: {e}")))
 }
 
 /// Reads a PLY mesh with optional `material_id`, `segment_id`, `category_id` face columns. `fsegs` (a
 /// `.fsegs.json` with one over-segment id per file face) fills the material column when the PLY has none.
 pub fn mesh_from_ply(path: &Path, fsegs: Option<&Path>) -> Result<LabeledMesh, IngestError> {
     let read = read_ply(path)?;
+    let fsegs = match fsegs {
+        Some(f) => Some((f, std::fs::read(f).map_err(|e| IngestError::io(f, e))?)),
+        None => None,
+    };
+    mesh_from_ply_read(path, read, fsegs.as_ref().map(|(f, b)| (*f, b.as_slice())))
+}
+
+/// [`mesh_from_ply`] on a PLY already read (`path` names it in messages) and the `.fsegs.json` bytes already in
+/// memory (with their path, for messages).
+pub fn mesh_from_ply_read(
+    path: &Path,
+    read: crate::ply::PlyRead,
+    fsegs: Option<(&Path, &[u8])>,
+) -> Result<LabeledMesh, IngestError> {
     if read.polygons_triangulated > 0 {
         tracing::info!("{}: fan-triangulated {} polygon faces", path.display(), read.polygons_triangulated);
     }
@@ -86,8 +99,8 @@ pub fn mesh_from_ply(path: &Path, fsegs: Option<&Path>) -> Result<LabeledMesh, I
     let face_segment = ids("segment_id").unwrap_or_else(|| vec![-1; n]);
     let face_category = ids("category_id").unwrap_or_else(|| vec![-1; n]);
     let mut face_material = ids("material_id");
-    if let Some(fsegs) = fsegs {
-        let f: Fsegs = read_json(fsegs)?;
+    if let Some((fsegs, bytes)) = fsegs {
+        let f: Fsegs = parse_json(fsegs, bytes)?;
         if f.seg_indices.len() != read.face_count {
             return Err(IngestError::format(
                 fsegs,
@@ -130,7 +143,14 @@ pub fn mesh_from_ply(path: &Path, fsegs: Option<&Path>) -> Result<LabeledMesh, I
 /// Names objects from `.semseg.json`: a segment (object) id takes the label of the group whose `objectId` (or
 /// else `id`) equals it; an over-segment (material) id takes the label of the group listing it in `segments`.
 fn apply_semseg(path: &Path, labeled: &mut LabeledMesh) -> Result<(), IngestError> {
-    let s: SemSeg = read_json(path)?;
+    let bytes = std::fs::read(path).map_err(|e| IngestError::io(path, e))?;
+    apply_semseg_bytes(path, &bytes, labeled)
+}
+
+/// Names the objects of `labeled` from a `.semseg.json` already in memory (see [`load_mesh`]); `path` is used
+/// only in error messages.
+pub fn apply_semseg_bytes(path: &Path, bytes: &[u8], labeled: &mut LabeledMesh) -> Result<(), IngestError> {
+    let s: SemSeg = parse_json(path, bytes)?;
     let mut by_object = HashMap::new();
     let mut by_id = HashMap::new();
     let mut by_overseg = HashMap::new();

@@ -76,6 +76,21 @@ fn fuzz_photo() {
     fuzz("photo");
 }
 
+#[test]
+fn fuzz_matterport_fsegs() {
+    fuzz("matterport_fsegs");
+}
+
+#[test]
+fn fuzz_matterport_semseg() {
+    fuzz("matterport_semseg");
+}
+
+#[test]
+fn fuzz_photo_cache() {
+    fuzz("photo_cache");
+}
+
 /// The harness itself: a reader that panics, allocates out of proportion or returns a bad message is caught.
 #[test]
 fn harness_detects_each_failure_kind() {

@@ -50,6 +50,9 @@ pub const READERS: &[Reader] = &[
     Reader { name: "mtl", path: || "/fuzz/room.obj".into(), seeds: mtl_seeds, run: run_mtl },
     Reader { name: "image_header", path: || "/fuzz/photo.img".into(), seeds: image_seeds, run: run_image_header },
     Reader { name: "photo", path: || "/fuzz/photo.img".into(), seeds: image_seeds, run: run_photo },
+    Reader { name: "matterport_fsegs", path: || "/fuzz/h.fsegs.json".into(), seeds: fsegs_seeds, run: run_fsegs },
+    Reader { name: "matterport_semseg", path: || "/fuzz/h.semseg.json".into(), seeds: semseg_seeds, run: run_semseg },
+    Reader { name: "photo_cache", path: || cache_dir().join("view.json"), seeds: manifest_seeds, run: run_manifest },
 ];
 
 /// The reader called `name`.
@@ -386,6 +389,87 @@ fn exr_with(
     let mut out = Cursor::new(Vec::new());
     Image::from_layer(layer).write().to_buffered(&mut out).unwrap();
     out.into_inner()
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Matterport side files and the photo cache manifest, fed as bytes (writing each case to disk would make the run
+// wait on the disk, not on the reader).
+
+/// The house mesh the side files describe (6 faces).
+fn house_ply() -> &'static [u8] {
+    static PLY: OnceLock<Vec<u8>> = OnceLock::new();
+    PLY.get_or_init(|| {
+        let mut mesh = sample_ply_mesh(false);
+        mesh.face_props.retain(|p| p.name != "material_id");
+        ingest::ply::encode_ply(Path::new("h.ply"), &mesh).unwrap()
+    })
+}
+
+fn house_mesh() -> (PathBuf, ingest::ply::PlyRead) {
+    let ply = PathBuf::from("/fuzz/h.ply");
+    let read = ingest::ply::read_ply_bytes(&ply, house_ply()).unwrap();
+    (ply, read)
+}
+
+fn fsegs_seeds() -> Vec<Vec<u8>> {
+    vec![b"{\"sceneId\": \"h\", \"segIndices\": [100, 100, 101, 200, 200, -1]}".to_vec()]
+}
+
+fn semseg_seeds() -> Vec<Vec<u8>> {
+    vec![
+        br#"{"sceneId": "h", "segGroups": [
+{"id": 0, "objectId": 0, "label": "chair", "segments": [100, 101], "obb": {"centroid": [0, 0, 0]}},
+{"id": 1, "objectId": 1, "label": "table", "segments": [200]},
+{"id": 2, "label": null, "segments": []}]}"#
+            .to_vec(),
+    ]
+}
+
+fn run_fsegs(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let (ply, read) = house_mesh();
+    let labeled = ingest::matterport::mesh_from_ply_read(&ply, read, Some((path, bytes))).map_err(msg)?;
+    std::hint::black_box(scan::assemble(labeled, &ply, Vec::new(), GroupBy::Material));
+    Ok(())
+}
+
+fn run_semseg(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let (ply, read) = house_mesh();
+    let mut labeled = ingest::matterport::mesh_from_ply_read(&ply, read, None).unwrap();
+    ingest::matterport::apply_semseg_bytes(path, bytes, &mut labeled).map_err(msg)?;
+    std::hint::black_box(scan::assemble(labeled, &ply, Vec::new(), GroupBy::Segment));
+    Ok(())
+}
+
+/// A photo cache directory holding `view.exr` (13×7, R, G, B, mask) as written by `write_cached`.
+fn cache_dir() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = PHOTO_SIZE;
+        let n = (w * h) as usize;
+        let img =
+            ingest::photo::LinearImage::new(w, h, vec![0.5; 3 * n], (0..n).map(|i| u8::from(i % 3 != 0)).collect())
+                .unwrap();
+        let camera = ingest::camera::Camera {
+            width: w,
+            height: h,
+            intrinsics: ingest::camera::Intrinsics { fx: 10.0, fy: 10.0, cx: 6.0, cy: 3.0 },
+            distortion: ingest::camera::Distortion::default(),
+            cam_to_world: DMat4::IDENTITY,
+        };
+        ingest::photo::write_cached(dir.path(), "view", &camera, &img).unwrap();
+        dir
+    })
+    .path()
+}
+
+fn manifest_seeds() -> Vec<Vec<u8>> {
+    vec![std::fs::read(cache_dir().join("view.json")).unwrap()]
+}
+
+fn run_manifest(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let dir = path.parent().unwrap();
+    ingest::photo::cache::read_cached_bytes(dir, "view", bytes).map(std::hint::black_box).map(drop).map_err(msg)
 }
 
 fn run_image_header(path: &Path, bytes: &[u8]) -> Result<(), String> {
