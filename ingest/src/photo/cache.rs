@@ -162,18 +162,31 @@ fn read_cached_entry(dir: &Path, name: &str, entry: ManifestEntry) -> Result<(Ca
             message: format!("lists image {:?}, which does not exist", entry.image),
         });
     }
-    let img = match read_image_checked(&exr_path, Some((entry.width, entry.height)))?.0 {
+    // A size mismatch is the manifest's and the image's disagreement: the error names both.
+    let size_error = |found: (u32, u32)| PhotoError::Manifest {
+        path: json_path.clone(),
+        message: format!(
+            "says {}x{} but its image {} is {}x{}",
+            entry.width,
+            entry.height,
+            exr_path.display(),
+            found.0,
+            found.1
+        ),
+    };
+    let decoded = match read_image_checked(&exr_path, Some((entry.width, entry.height))) {
+        Ok((decoded, _)) => decoded,
+        Err(PhotoError::WrongSize { found, .. }) => return Err(size_error(found)),
+        Err(e) => return Err(e),
+    };
+    let img = match decoded {
         DecodedImage::Linear(img) => img,
         DecodedImage::Display(_) => {
             return Err(PhotoError::Unsupported { path: exr_path, message: "cached image is not an EXR".into() });
         }
     };
     if (img.width, img.height) != (entry.width, entry.height) {
-        return Err(PhotoError::WrongSize {
-            path: exr_path,
-            expected: (entry.width, entry.height),
-            found: (img.width, img.height),
-        });
+        return Err(size_error((img.width, img.height)));
     }
     Ok((entry.camera, img))
 }
