@@ -86,7 +86,7 @@ pub fn read_cameras(path: &Path) -> Result<BTreeMap<u32, ColmapCamera>, IngestEr
 
 /// [`read_cameras`] on bytes already in memory; `path` is used only in error messages.
 pub fn parse_cameras(path: &Path, bytes: &[u8]) -> Result<BTreeMap<u32, ColmapCamera>, IngestError> {
-    let text = crate::matterport::utf8(path, bytes)?;
+    let text = crate::error::utf8(path, bytes)?;
     let mut out = BTreeMap::new();
     for (k, line) in text.lines().enumerate() {
         let ln = k + 1;
@@ -160,7 +160,7 @@ pub struct ColmapImage {
 /// Parses `images.txt` already in memory (`IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME` lines, each followed
 /// by a POINTS2D line); `path` is used only in error messages. Camera ids are not resolved here.
 pub fn parse_images(path: &Path, bytes: &[u8]) -> Result<Vec<ColmapImage>, IngestError> {
-    let text = crate::matterport::utf8(path, bytes)?;
+    let text = crate::error::utf8(path, bytes)?;
     let mut images = Vec::new();
     let mut lines = text.lines().enumerate();
     while let Some((k, line)) = lines.next() {

@@ -79,3 +79,9 @@ pub(crate) fn one_line(message: impl std::fmt::Display) -> String {
     }
     out
 }
+
+/// A text file's bytes as UTF-8, or an error naming the file and the offset of the first bad byte.
+pub(crate) fn utf8<'a>(path: &std::path::Path, bytes: &'a [u8]) -> Result<&'a str, IngestError> {
+    std::str::from_utf8(bytes)
+        .map_err(|e| IngestError::format(path, format!("not UTF-8 text (byte {})", e.valid_up_to())))
+}

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use crate::camera::{Camera, Distortion, Intrinsics};
-use crate::error::IngestError;
+use crate::error::{IngestError, utf8};
 use crate::image_header::{check_image_size, image_dimensions, resolve_image};
 use crate::mesh::{LabeledMesh, Mesh};
 use crate::ply::read_ply;
@@ -379,12 +379,6 @@ pub fn load_views_conf(dir: &Path) -> Result<Vec<View>, IngestError> {
     }
     check_unique_names(&views, &conf)?;
     Ok(views)
-}
-
-/// A text file's bytes as UTF-8, or an error naming the file and the first bad byte.
-pub(crate) fn utf8<'a>(path: &Path, bytes: &'a [u8]) -> Result<&'a str, IngestError> {
-    std::str::from_utf8(bytes)
-        .map_err(|e| IngestError::format(path, format!("not UTF-8 text (byte {})", e.valid_up_to())))
 }
 
 /// One raw intrinsics file as read: image size, pinhole intrinsics and OpenCV distortion.

@@ -115,7 +115,7 @@ fn append_obj_from(
     out: &mut LabeledMesh,
     material_loader: impl Fn(&Path) -> tobj::MTLLoadResult,
 ) -> Result<(), IngestError> {
-    let text = crate::matterport::utf8(path, bytes)?;
+    let text = crate::error::utf8(path, bytes)?;
     check_indices(path, text)?;
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, material_loader)
