@@ -371,9 +371,16 @@ pub fn replay_regressions() -> (usize, Vec<String>) {
         let Ok(entries) = std::fs::read_dir(regression_dir(reader.name)) else { continue };
         let mut files: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
         files.sort();
-        for f in files {
+        // A saved case that hangs again aborts the run with its name instead of stalling it.
+        let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+        let watchdog = Watchdog::start_with(move |k, running| {
+            eprintln!("fuzz: saved case {} hung for {running:?}; aborting", names[k as usize]);
+        });
+        for (k, f) in files.into_iter().enumerate() {
             let bytes = std::fs::read(&f).unwrap();
+            watchdog.begin(k as u64);
             let run = run_case(reader, &path, &bytes);
+            watchdog.end();
             replayed += 1;
             if let Some(why) = violation(&path, bytes.len(), &run) {
                 failures.push(format!("{}: {why}", f.display()));
@@ -381,6 +388,7 @@ pub fn replay_regressions() -> (usize, Vec<String>) {
                 failures.push(format!("{}: took {:?}", f.display(), run.time));
             }
         }
+        watchdog.stop();
     }
     (replayed, failures)
 }
@@ -396,7 +404,22 @@ struct Watchdog {
 }
 
 impl Watchdog {
+    /// Starts watching the fuzz cases of `reader` under `seed`: a hung case is regenerated and saved.
     fn start(reader: Reader, corpus: Arc<Vec<Vec<u8>>>, seed: u64) -> Self {
+        Self::start_with(move |k, running| {
+            let bytes = case_bytes(&reader, &corpus, seed, k);
+            let saved = save_case(reader.name, seed, k, &bytes);
+            eprintln!(
+                "fuzz: reader {} seed {seed} case {k} hung for {running:?}; saved to {}; aborting",
+                reader.name,
+                saved.display()
+            );
+        })
+    }
+
+    /// Starts watching; `on_hang(case, running)` reports a case running longer than [`HANG_LIMIT`], after which
+    /// the process aborts.
+    fn start_with(on_hang: impl Fn(u64, Duration) + Send + 'static) -> Self {
         let started = Arc::new(AtomicU64::new(0));
         let case = Arc::new(AtomicU64::new(0));
         let done = Arc::new(AtomicBool::new(false));
@@ -411,14 +434,7 @@ impl Watchdog {
                 }
                 let running = origin.elapsed().saturating_sub(Duration::from_micros(t - 1));
                 if running > HANG_LIMIT {
-                    let k = c.load(Ordering::Relaxed);
-                    let bytes = case_bytes(&reader, &corpus, seed, k);
-                    let saved = save_case(reader.name, seed, k, &bytes);
-                    eprintln!(
-                        "fuzz: reader {} seed {seed} case {k} hung for {running:?}; saved to {}; aborting",
-                        reader.name,
-                        saved.display()
-                    );
+                    on_hang(c.load(Ordering::Relaxed), running);
                     std::process::abort();
                 }
             }
