@@ -1,5 +1,5 @@
 # The two commands the README opens with. Each runs scripts/setup first (idempotent, ~1 s when done).
-.PHONY: setup demo test lint rust-test isa-test reliability-test validation bench
+.PHONY: setup demo test lint rust-test isa-test reliability-test validation bench fuzz
 
 CARGO ?= cargo
 PY := deps/venv/bin/python
@@ -40,3 +40,7 @@ validation:
 
 bench: setup
 	$(CARGO) bench --workspace
+
+## Every ingest reader against 10^6 mutated inputs each (release; ~5 min on 2 cores); CASES=N to change.
+fuzz:
+	scripts/fuzz $(or $(CASES),1000000)

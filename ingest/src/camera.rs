@@ -10,10 +10,12 @@
 //! - Distortion acts on normalised OpenCV coordinates (x right, y down, z forward) = `(X/Z, Y/Z)` with
 //!   `(X, Y, Z) = (x_gl, -y_gl, -z_gl)`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec2, DVec3};
 use serde::{Deserialize, Serialize};
+
+use crate::error::IngestError;
 
 /// Pinhole intrinsics in pixels (pixel centres at integer coordinates).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -107,4 +109,24 @@ pub struct View {
     /// The image to use: a linear `.exr`/`.hdr` sibling when one exists, else the listed file.
     pub image_path: PathBuf,
     pub camera: Camera,
+}
+
+/// Refuses two views with the same name: a view's name (its image's file stem) keys its cached photo and its
+/// results, so a duplicate would silently overwrite the other view's data. `listed_in` is the camera file.
+pub(crate) fn check_unique_names(views: &[View], listed_in: &Path) -> Result<(), IngestError> {
+    let mut seen: std::collections::HashMap<&str, &Path> = std::collections::HashMap::with_capacity(views.len());
+    for v in views {
+        if let Some(first) = seen.insert(&v.name, &v.image_path) {
+            return Err(IngestError::format(
+                listed_in,
+                format!(
+                    "images {} and {} share the view name {:?} (their file stem), which must be unique",
+                    first.display(),
+                    v.image_path.display(),
+                    v.name
+                ),
+            ));
+        }
+    }
+    Ok(())
 }

@@ -7,8 +7,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4};
 
-use crate::camera::View;
-use crate::camera::{Camera, Distortion, Intrinsics};
+use crate::camera::{Camera, Distortion, Intrinsics, View, check_unique_names};
 use crate::error::IngestError;
 use crate::image_header::{check_image_size, resolve_image};
 
@@ -80,7 +79,13 @@ pub fn camera_from_params(model: &str, p: &[f64]) -> Result<(Intrinsics, Distort
 
 /// Reads `cameras.txt`: `CAMERA_ID MODEL WIDTH HEIGHT PARAMS...` per line, `#` comments.
 pub fn read_cameras(path: &Path) -> Result<BTreeMap<u32, ColmapCamera>, IngestError> {
-    let text = std::fs::read_to_string(path).map_err(|e| IngestError::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| IngestError::io(path, e))?;
+    parse_cameras(path, &bytes)
+}
+
+/// [`read_cameras`] on bytes already in memory; `path` is used only in error messages.
+pub fn parse_cameras(path: &Path, bytes: &[u8]) -> Result<BTreeMap<u32, ColmapCamera>, IngestError> {
+    let text = crate::error::utf8(path, bytes)?;
     let mut out = BTreeMap::new();
     for (k, line) in text.lines().enumerate() {
         let ln = k + 1;
@@ -103,6 +108,9 @@ pub fn read_cameras(path: &Path) -> Result<BTreeMap<u32, ColmapCamera>, IngestEr
         let id = int(t[0], "CAMERA_ID")?;
         let width = int(t[2], "WIDTH")?;
         let height = int(t[3], "HEIGHT")?;
+        if width == 0 || height == 0 {
+            return Err(IngestError::line(path, ln, format!("image size {width}x{height} has no pixels")));
+        }
         let params = t[4..].iter().map(|s| parse_f64(path, ln, s)).collect::<Result<Vec<_>, _>>()?;
         let (intrinsics, distortion) = camera_from_params(t[1], &params).map_err(|m| IngestError::line(path, ln, m))?;
         if out.insert(id, ColmapCamera { width, height, intrinsics, distortion }).is_some() {
@@ -136,13 +144,23 @@ pub fn cam_to_world_from_colmap(q: [f64; 4], t: [f64; 3]) -> Result<DMat4, Strin
     ))
 }
 
-/// Reads `images.txt` (+ `cameras.txt` beside it) into views; images are looked up in `image_dir` and their
-/// sizes must match their camera.
-pub fn load_views(model_dir: &Path, image_dir: &Path) -> Result<Vec<View>, IngestError> {
-    let cameras = read_cameras(&model_dir.join("cameras.txt"))?;
-    let path = model_dir.join("images.txt");
-    let text = std::fs::read_to_string(&path).map_err(|e| IngestError::io(&path, e))?;
-    let mut views = Vec::new();
+/// One image line of `images.txt`, pose already converted to our convention.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColmapImage {
+    /// 1-based line of the image entry.
+    pub line: usize,
+    pub camera_id: u32,
+    /// The `NAME` as listed (relative to the image directory; runs of whitespace read as one space).
+    pub name: String,
+    /// OpenGL camera-to-world.
+    pub cam_to_world: DMat4,
+}
+
+/// Parses `images.txt` already in memory (`IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME` lines, each followed
+/// by a POINTS2D line); `path` is used only in error messages. Camera ids are not resolved here.
+pub fn parse_images(path: &Path, bytes: &[u8]) -> Result<Vec<ColmapImage>, IngestError> {
+    let text = crate::error::utf8(path, bytes)?;
+    let mut images = Vec::new();
     let mut lines = text.lines().enumerate();
     while let Some((k, line)) = lines.next() {
         let ln = k + 1;
@@ -155,26 +173,38 @@ pub fn load_views(model_dir: &Path, image_dir: &Path) -> Result<Vec<View>, Inges
         let t: Vec<&str> = line.split_ascii_whitespace().collect();
         if t.len() < 10 {
             return Err(IngestError::line(
-                &path,
+                path,
                 ln,
                 format!("{} values, expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME", t.len()),
             ));
         }
-        let v: Vec<f64> = t[1..8].iter().map(|s| parse_f64(&path, ln, s)).collect::<Result<_, _>>()?;
-        let cam_id = t[8]
+        let v: Vec<f64> = t[1..8].iter().map(|s| parse_f64(path, ln, s)).collect::<Result<_, _>>()?;
+        let camera_id = t[8]
             .parse::<u32>()
-            .map_err(|_| IngestError::line(&path, ln, format!("CAMERA_ID {:?} is not an integer", t[8])))?;
+            .map_err(|_| IngestError::line(path, ln, format!("CAMERA_ID {:?} is not an integer", t[8])))?;
+        let cam_to_world = cam_to_world_from_colmap([v[0], v[1], v[2], v[3]], [v[4], v[5], v[6]])
+            .map_err(|m| IngestError::line(path, ln, m))?;
+        images.push(ColmapImage { line: ln, camera_id, name: t[9..].join(" "), cam_to_world });
+    }
+    Ok(images)
+}
+
+/// Reads `images.txt` (+ `cameras.txt` beside it) into views; images are looked up in `image_dir` and their
+/// sizes must match their camera.
+pub fn load_views(model_dir: &Path, image_dir: &Path) -> Result<Vec<View>, IngestError> {
+    let cameras = read_cameras(&model_dir.join("cameras.txt"))?;
+    let path = model_dir.join("images.txt");
+    let bytes = std::fs::read(&path).map_err(|e| IngestError::io(&path, e))?;
+    let mut views = Vec::new();
+    for image in parse_images(&path, &bytes)? {
+        let (ln, cam_id) = (image.line, image.camera_id);
         let cam = cameras
             .get(&cam_id)
             .ok_or_else(|| IngestError::line(&path, ln, format!("camera {cam_id} is not in cameras.txt")))?;
-        let cam_to_world = cam_to_world_from_colmap([v[0], v[1], v[2], v[3]], [v[4], v[5], v[6]])
-            .map_err(|m| IngestError::line(&path, ln, m))?;
-        // Names may contain spaces (runs of whitespace are read as one space).
-        let name_str = t[9..].join(" ");
-        let listed = image_dir.join(&name_str);
+        let listed = image_dir.join(&image.name);
         let image_path = resolve_image(&listed, &path)?;
         check_image_size(&image_path, cam.width, cam.height, &format!("{}:{ln} (camera {cam_id})", path.display()))?;
-        let name = Path::new(&name_str).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = Path::new(&image.name).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         views.push(View {
             name,
             image_path,
@@ -183,9 +213,10 @@ pub fn load_views(model_dir: &Path, image_dir: &Path) -> Result<Vec<View>, Inges
                 height: cam.height,
                 intrinsics: cam.intrinsics,
                 distortion: cam.distortion,
-                cam_to_world,
+                cam_to_world: image.cam_to_world,
             },
         });
     }
+    check_unique_names(&views, &path)?;
     Ok(views)
 }

@@ -63,3 +63,25 @@ impl IngestError {
         Self::Element { path: path.into(), element: element.into(), index, message: message.into() }
     }
 }
+
+/// A third-party error message made fit for a one-line error: control characters (line breaks, NULs, ...;
+/// some decoders end their messages with a newline or quote raw input bytes) are escaped and surrounding
+/// whitespace is trimmed.
+pub(crate) fn one_line(message: impl std::fmt::Display) -> String {
+    let message = message.to_string();
+    let mut out = String::with_capacity(message.len());
+    for c in message.trim().chars() {
+        if c.is_control() {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// A text file's bytes as UTF-8, or an error naming the file and the offset of the first bad byte.
+pub(crate) fn utf8<'a>(path: &std::path::Path, bytes: &'a [u8]) -> Result<&'a str, IngestError> {
+    std::str::from_utf8(bytes)
+        .map_err(|e| IngestError::format(path, format!("not UTF-8 text (byte {})", e.valid_up_to())))
+}

@@ -22,4 +22,4 @@ pub use atomic::write_atomic;
 pub use camera::View;
 pub use error::IngestError;
 pub use mesh::Mesh;
-pub use scan::{GroupBy, ObjectInfo, Scan, ScanFormat, load_scan, objects_seen_by_no_camera};
+pub use scan::{GroupBy, ObjectInfo, Removed, Scan, ScanFormat, load_scan, objects_seen_by_no_camera};

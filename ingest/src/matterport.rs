@@ -7,9 +7,8 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use crate::camera::View;
-use crate::camera::{Camera, Distortion, Intrinsics};
-use crate::error::IngestError;
+use crate::camera::{Camera, Distortion, Intrinsics, View, check_unique_names};
+use crate::error::{IngestError, utf8};
 use crate::image_header::{check_image_size, image_dimensions, resolve_image};
 use crate::listing::files_with_extension;
 use crate::mesh::{LabeledMesh, Mesh};
@@ -70,15 +69,28 @@ struct SegGroup {
     segments: Vec<i64>,
 }
 
-fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T, IngestError> {
-    let text = std::fs::read_to_string(path).map_err(|e| IngestError::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| IngestError::line(path, e.line(), format!("bad JSON: {e}")))
+fn parse_json<T: for<'de> Deserialize<'de>>(path: &Path, bytes: &[u8]) -> Result<T, IngestError> {
+    serde_json::from_slice(bytes).map_err(|e| IngestError::line(path, e.line(), format!("bad JSON: {e}")))
 }
 
 /// Reads a PLY mesh with optional `material_id`, `segment_id`, `category_id` face columns. `fsegs` (a
 /// `.fsegs.json` with one over-segment id per file face) fills the material column when the PLY has none.
 pub fn mesh_from_ply(path: &Path, fsegs: Option<&Path>) -> Result<LabeledMesh, IngestError> {
     let read = read_ply(path)?;
+    let fsegs = match fsegs {
+        Some(f) => Some((f, std::fs::read(f).map_err(|e| IngestError::io(f, e))?)),
+        None => None,
+    };
+    mesh_from_ply_read(path, read, fsegs.as_ref().map(|(f, b)| (*f, b.as_slice())))
+}
+
+/// [`mesh_from_ply`] on a PLY already read (`path` names it in messages) and the `.fsegs.json` bytes already in
+/// memory (with their path, for messages).
+pub fn mesh_from_ply_read(
+    path: &Path,
+    read: crate::ply::PlyRead,
+    fsegs: Option<(&Path, &[u8])>,
+) -> Result<LabeledMesh, IngestError> {
     if read.polygons_triangulated > 0 {
         tracing::info!("{}: fan-triangulated {} polygon faces", path.display(), read.polygons_triangulated);
     }
@@ -87,8 +99,8 @@ pub fn mesh_from_ply(path: &Path, fsegs: Option<&Path>) -> Result<LabeledMesh, I
     let face_segment = ids("segment_id").unwrap_or_else(|| vec![-1; n]);
     let face_category = ids("category_id").unwrap_or_else(|| vec![-1; n]);
     let mut face_material = ids("material_id");
-    if let Some(fsegs) = fsegs {
-        let f: Fsegs = read_json(fsegs)?;
+    if let Some((fsegs, bytes)) = fsegs {
+        let f: Fsegs = parse_json(fsegs, bytes)?;
         if f.seg_indices.len() != read.face_count {
             return Err(IngestError::format(
                 fsegs,
@@ -131,7 +143,14 @@ pub fn mesh_from_ply(path: &Path, fsegs: Option<&Path>) -> Result<LabeledMesh, I
 /// Names objects from `.semseg.json`: a segment (object) id takes the label of the group whose `objectId` (or
 /// else `id`) equals it; an over-segment (material) id takes the label of the group listing it in `segments`.
 fn apply_semseg(path: &Path, labeled: &mut LabeledMesh) -> Result<(), IngestError> {
-    let s: SemSeg = read_json(path)?;
+    let bytes = std::fs::read(path).map_err(|e| IngestError::io(path, e))?;
+    apply_semseg_bytes(path, &bytes, labeled)
+}
+
+/// Names the objects of `labeled` from a `.semseg.json` already in memory (see [`load_mesh`]); `path` is used
+/// only in error messages.
+pub fn apply_semseg_bytes(path: &Path, bytes: &[u8], labeled: &mut LabeledMesh) -> Result<(), IngestError> {
+    let s: SemSeg = parse_json(path, bytes)?;
     let mut by_object = HashMap::new();
     let mut by_id = HashMap::new();
     let mut by_overseg = HashMap::new();
@@ -218,7 +237,13 @@ pub struct Conf {
 /// `intrinsics_matrix fx 0 cx 0 fy cy 0 0 1` applies to the following `scan <depth> <color> <16 camera-to-world
 /// values, row-major>` lines until the next one. Errors name the line. Images are not opened here.
 pub fn read_conf(conf: &Path) -> Result<Conf, IngestError> {
-    let text = std::fs::read_to_string(conf).map_err(|e| IngestError::io(conf, e))?;
+    let bytes = std::fs::read(conf).map_err(|e| IngestError::io(conf, e))?;
+    parse_conf(conf, &bytes)
+}
+
+/// [`read_conf`] on bytes already in memory; `conf` is used only in error messages.
+pub fn parse_conf(conf: &Path, bytes: &[u8]) -> Result<Conf, IngestError> {
+    let text = utf8(conf, bytes)?;
     let mut color_directory: Option<String> = None;
     let mut intrinsics: Option<(Intrinsics, usize)> = None;
     let mut out = Conf::default();
@@ -352,12 +377,23 @@ pub fn load_views_conf(dir: &Path) -> Result<Vec<View>, IngestError> {
     {
         tracing::warn!("{}: n_images says {n} but {} scan lines were read", conf.display(), views.len());
     }
+    check_unique_names(&views, &conf)?;
     Ok(views)
 }
 
+/// One raw intrinsics file as read: image size, pinhole intrinsics and OpenCV distortion.
+pub type RawIntrinsics = (u32, u32, Intrinsics, Distortion);
+
 /// Reads one raw intrinsics file: `width height fx fy cx cy k1 k2 p1 p2 k3` (OpenCV model).
-fn read_raw_intrinsics(path: &Path) -> Result<(u32, u32, Intrinsics, Distortion), IngestError> {
-    let text = std::fs::read_to_string(path).map_err(|e| IngestError::io(path, e))?;
+fn read_raw_intrinsics(path: &Path) -> Result<RawIntrinsics, IngestError> {
+    let bytes = std::fs::read(path).map_err(|e| IngestError::io(path, e))?;
+    parse_raw_intrinsics(path, &bytes)
+}
+
+/// Parses a raw intrinsics file already in memory (`width height fx fy cx cy k1 k2 p1 p2 k3`); `path` is used
+/// only in error messages.
+pub fn parse_raw_intrinsics(path: &Path, bytes: &[u8]) -> Result<RawIntrinsics, IngestError> {
+    let text = utf8(path, bytes)?;
     let tokens: Vec<&str> = text.split_ascii_whitespace().collect();
     if tokens.len() != 11 {
         return Err(IngestError::line(
@@ -367,8 +403,13 @@ fn read_raw_intrinsics(path: &Path) -> Result<(u32, u32, Intrinsics, Distortion)
         ));
     }
     let v: [f64; 11] = parse_floats(path, 1, &tokens)?;
-    if !v.iter().all(|x| x.is_finite()) || v[0] < 1.0 || v[1] < 1.0 || v[0].fract() != 0.0 || v[1].fract() != 0.0 {
-        return Err(IngestError::line(path, 1, "width and height must be positive integers and all values finite"));
+    let size_ok = |x: f64| (1.0..=f64::from(u32::MAX)).contains(&x) && x.fract() == 0.0;
+    if !v.iter().all(|x| x.is_finite()) || !size_ok(v[0]) || !size_ok(v[1]) {
+        return Err(IngestError::line(
+            path,
+            1,
+            "width and height must be integers in 1..=4294967295 and all values finite",
+        ));
     }
     if v[2] <= 0.0 || v[3] <= 0.0 {
         return Err(IngestError::line(path, 1, "fx and fy must be positive"));
@@ -378,12 +419,26 @@ fn read_raw_intrinsics(path: &Path) -> Result<(u32, u32, Intrinsics, Distortion)
     Ok((v[0] as u32, v[1] as u32, k, d))
 }
 
+/// Parses a raw pose file already in memory (16 values, row-major camera-to-world, OpenGL camera), checked
+/// rigid; `path` is used only in error messages.
+pub fn parse_raw_pose(path: &Path, bytes: &[u8]) -> Result<glam::DMat4, IngestError> {
+    let text = utf8(path, bytes)?;
+    let tokens: Vec<&str> = text.split_ascii_whitespace().collect();
+    if tokens.len() != 16 {
+        return Err(IngestError::format(path, format!("{} values, expected 16 (4x4 camera-to-world)", tokens.len())));
+    }
+    let m: [f64; 16] = parse_floats(path, 1, &tokens)?;
+    let cam_to_world = from_row_major(&m);
+    check_rigid(&cam_to_world).map_err(|why| IngestError::format(path, why))?;
+    Ok(cam_to_world)
+}
+
 /// Reads the raw distorted cameras: every `matterport_camera_poses/<uuid>_pose_<cam>_<yaw>.txt` (16 values,
 /// camera-to-world, OpenGL camera) with `matterport_camera_intrinsics/<uuid>_intrinsics_<cam>.txt` and the photo
 /// `matterport_color_images/<uuid>_i<cam>_<yaw>.jpg`, whose size must match the intrinsics.
 pub fn load_views_raw(dir: &Path) -> Result<Vec<View>, IngestError> {
     let pose_dir = dir.join("matterport_camera_poses");
-    let mut intrinsics_cache: HashMap<PathBuf, (u32, u32, Intrinsics, Distortion)> = HashMap::new();
+    let mut intrinsics_cache: HashMap<PathBuf, RawIntrinsics> = HashMap::new();
     let mut views = Vec::new();
     for pose_path in files_with_extension(&pose_dir, "txt")? {
         let stem = pose_path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
@@ -409,17 +464,8 @@ pub fn load_views_raw(dir: &Path) -> Result<Vec<View>, IngestError> {
                 v
             }
         };
-        let text = std::fs::read_to_string(&pose_path).map_err(|e| IngestError::io(&pose_path, e))?;
-        let tokens: Vec<&str> = text.split_ascii_whitespace().collect();
-        if tokens.len() != 16 {
-            return Err(IngestError::format(
-                &pose_path,
-                format!("{} values, expected 16 (4x4 camera-to-world)", tokens.len()),
-            ));
-        }
-        let m: [f64; 16] = parse_floats(&pose_path, 1, &tokens)?;
-        let cam_to_world = from_row_major(&m);
-        check_rigid(&cam_to_world).map_err(|why| IngestError::format(&pose_path, why))?;
+        let bytes = std::fs::read(&pose_path).map_err(|e| IngestError::io(&pose_path, e))?;
+        let cam_to_world = parse_raw_pose(&pose_path, &bytes)?;
         let name = format!("{uuid}_i{cam}_{yaw}");
         let listed = dir.join("matterport_color_images").join(format!("{name}.jpg"));
         let image_path = resolve_image(&listed, &pose_path)?;
@@ -436,5 +482,6 @@ pub fn load_views_raw(dir: &Path) -> Result<Vec<View>, IngestError> {
             message: "no <uuid>_pose_<cam>_<yaw>.txt camera poses".into(),
         });
     }
+    check_unique_names(&views, &pose_dir)?;
     Ok(views)
 }

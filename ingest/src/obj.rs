@@ -33,10 +33,93 @@ pub fn load_obj(path: &Path) -> Result<LabeledMesh, IngestError> {
     Ok(out)
 }
 
+/// Loads one OBJ file already in memory; `path` is used in error messages and labels. Every `mtllib` it names
+/// is read from `mtl` (`None`: no material library, material groups stay unnamed).
+pub fn load_obj_bytes(path: &Path, obj: &[u8], mtl: Option<&[u8]>) -> Result<LabeledMesh, IngestError> {
+    let mut out = LabeledMesh::default();
+    append_obj_from(path, obj, false, &mut out, |_| match mtl {
+        Some(bytes) => material_names(bytes),
+        None => Err(tobj::LoadError::OpenFileFailed),
+    })?;
+    Ok(out)
+}
+
 fn append_obj(path: &Path, prefix_names: bool, out: &mut LabeledMesh) -> Result<(), IngestError> {
+    let bytes = std::fs::read(path).map_err(|e| IngestError::io(path, e))?;
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    append_obj_from(path, &bytes, prefix_names, out, |mtl| {
+        std::fs::read(dir.join(mtl)).map_err(|_| tobj::LoadError::OpenFileFailed).and_then(|b| material_names(&b))
+    })
+}
+
+/// A material library reduced to its `newmtl` lines (trimmed) before `tobj` parses it: only material names are
+/// used here, and `tobj` panics on some malformed value lines (a `Kd` with fewer than three numbers), so value
+/// lines never reach it.
+fn material_names(bytes: &[u8]) -> tobj::MTLLoadResult {
+    let text = std::str::from_utf8(bytes).map_err(|_| tobj::LoadError::ReadError)?;
+    let names: String = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| l.split_whitespace().next() == Some("newmtl"))
+        .flat_map(|l| [l, "\n"])
+        .collect();
+    tobj::load_mtl_buf(&mut names.as_bytes())
+}
+
+/// Checks every index of the `f`, `l` and `p` lines before `tobj` sees them: an integer that refers to an element
+/// (`v`, `vt`, `vn`) defined on an earlier line, counted from 1, or from the latest backwards when negative.
+/// `tobj` computes positions from these indices without overflow checks, so a zero or far out-of-range index
+/// would make it panic or index the wrong vertex.
+fn check_indices(path: &Path, text: &str) -> Result<(), IngestError> {
+    let mut counts = [0usize; 3];
+    for (k, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f" | "l" | "p") => {
+                for vertex in words {
+                    for (slot, part) in vertex.split('/').enumerate() {
+                        if part.is_empty() {
+                            continue;
+                        }
+                        let what = ["vertex", "texture coordinate", "normal"].get(slot).ok_or_else(|| {
+                            IngestError::line(path, k + 1, format!("face vertex {vertex:?} has more than 3 indices"))
+                        })?;
+                        let n = counts[slot];
+                        let ok = part.parse::<i64>().is_ok_and(|i| {
+                            let magnitude = usize::try_from(i.unsigned_abs()).unwrap_or(usize::MAX);
+                            i != 0 && magnitude <= n
+                        });
+                        if !ok {
+                            return Err(IngestError::line(
+                                path,
+                                k + 1,
+                                format!("{what} index {part:?} does not refer to one of the {n} defined before it"),
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+fn append_obj_from(
+    path: &Path,
+    bytes: &[u8],
+    prefix_names: bool,
+    out: &mut LabeledMesh,
+    material_loader: impl Fn(&Path) -> tobj::MTLLoadResult,
+) -> Result<(), IngestError> {
+    let text = crate::error::utf8(path, bytes)?;
+    check_indices(path, text)?;
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
-    let (models, materials) =
-        tobj::load_obj(path, &options).map_err(|e| IngestError::format(path, format!("cannot load OBJ: {e}")))?;
+    let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, material_loader)
+        .map_err(|e| IngestError::format(path, format!("cannot load OBJ: {e}")))?;
     let materials = match materials {
         Ok(m) => m,
         Err(e) => {

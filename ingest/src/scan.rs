@@ -31,6 +31,18 @@ pub struct Scan {
     /// Index into `objects` for each triangle of `mesh`.
     pub face_object: Vec<u32>,
     pub views: Vec<View>,
+    /// What loading removed from the file's mesh, for the caller to report.
+    pub removed: Removed,
+}
+
+/// Geometry dropped while loading a scan. Nothing is dropped silently: the caller reports these counts.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Removed {
+    /// Zero-area triangles (no area, no normal; see [`Mesh::is_zero_area`]).
+    pub zero_area_triangles: usize,
+    /// Objects all of whose triangles had zero area, as they were in the file (`triangles` = how many were
+    /// dropped). They are absent from [`Scan::objects`]: no photo can constrain a surface without area.
+    pub objects_without_area: Vec<ObjectInfo>,
 }
 
 /// Which per-face id column defines objects: one variant per column, so that the config (which deserialises
@@ -217,7 +229,19 @@ fn load_mesh_beside(dir: &Path) -> Result<(LabeledMesh, PathBuf), IngestError> {
 #[must_use]
 pub fn assemble(labeled: LabeledMesh, mesh_source: &Path, views: Vec<View>, group_by: GroupBy) -> Scan {
     let LabeledMesh { mut mesh, segment_labels, category_labels, material_labels } = labeled;
-    mesh.drop_zero_area(mesh_source);
+    let column = |mesh: &Mesh| match group_by {
+        GroupBy::Segment => mesh.face_segment.clone(),
+        GroupBy::Category => mesh.face_category.clone(),
+        GroupBy::Material => mesh.face_material.clone(),
+    };
+    // Per id: (triangles, zero-area triangles) before the drop.
+    let mut before: BTreeMap<i32, (usize, usize)> = BTreeMap::new();
+    for (t, id) in column(&mesh).into_iter().enumerate() {
+        let e = before.entry(id).or_default();
+        e.0 += 1;
+        e.1 += usize::from(mesh.is_zero_area(t));
+    }
+    let zero_area_triangles = mesh.drop_zero_area(mesh_source);
     let (ids, labels) = match group_by {
         GroupBy::Segment => (&mesh.face_segment, &segment_labels),
         GroupBy::Category => (&mesh.face_category, &category_labels),
@@ -233,7 +257,12 @@ pub fn assemble(labeled: LabeledMesh, mesh_source: &Path, views: Vec<View>, grou
         .map(|(&id, &n)| ObjectInfo { id: i64::from(id), label: labels.get(&id).cloned(), triangles: n })
         .collect();
     let face_object = ids.iter().map(|id| index[id]).collect();
-    Scan { mesh, objects, face_object, views }
+    let objects_without_area = before
+        .iter()
+        .filter(|&(_, &(all, zero))| all == zero)
+        .map(|(&id, &(all, _))| ObjectInfo { id: i64::from(id), label: labels.get(&id).cloned(), triangles: all })
+        .collect();
+    Scan { mesh, objects, face_object, views, removed: Removed { zero_area_triangles, objects_without_area } }
 }
 
 /// A camera prepared for fast visibility tests.

@@ -9,17 +9,22 @@ use std::path::{Path, PathBuf};
 use glam::DMat4;
 use serde_json::Value;
 
-use crate::camera::View;
-use crate::camera::{Camera, Distortion, Intrinsics};
+use crate::camera::{Camera, Distortion, Intrinsics, View, check_unique_names};
 use crate::error::IngestError;
 use crate::image_header::{image_dimensions, resolve_image};
 use crate::pose::check_rigid;
 
 /// Reads `transforms.json` at `path`; image paths are relative to its directory.
 pub fn load_views(path: &Path) -> Result<Vec<View>, IngestError> {
-    let text = std::fs::read_to_string(path).map_err(|e| IngestError::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| IngestError::io(path, e))?;
+    load_views_bytes(path, &bytes)
+}
+
+/// [`load_views`] on the file's bytes already in memory; images are still looked up (and their headers read)
+/// relative to `path`'s directory.
+pub fn load_views_bytes(path: &Path, bytes: &[u8]) -> Result<Vec<View>, IngestError> {
     let root: Value =
-        serde_json::from_str(&text).map_err(|e| IngestError::line(path, e.line(), format!("bad JSON: {e}")))?;
+        serde_json::from_slice(bytes).map_err(|e| IngestError::line(path, e.line(), format!("bad JSON: {e}")))?;
     let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     if let Some(model) = root.get("camera_model").and_then(Value::as_str)
         && model != "OPENCV"
@@ -32,7 +37,10 @@ pub fn load_views(path: &Path) -> Result<Vec<View>, IngestError> {
     }
     let frames =
         root.get("frames").and_then(Value::as_array).ok_or_else(|| IngestError::format(path, "no `frames` array"))?;
-    frames.iter().enumerate().map(|(i, f)| frame_view(path, &base, &root, i, f)).collect()
+    let views =
+        frames.iter().enumerate().map(|(i, f)| frame_view(path, &base, &root, i, f)).collect::<Result<Vec<_>, _>>()?;
+    check_unique_names(&views, path)?;
+    Ok(views)
 }
 
 fn frame_view(path: &Path, base: &Path, root: &Value, i: usize, frame: &Value) -> Result<View, IngestError> {
@@ -48,6 +56,10 @@ fn frame_view(path: &Path, base: &Path, root: &Value, i: usize, frame: &Value) -
         }
     };
     let file = frame.get("file_path").and_then(Value::as_str).ok_or_else(|| err("no `file_path`".into()))?;
+    // Error messages quote the path; a line break in it would split them.
+    if file.chars().any(char::is_control) {
+        return Err(err(format!("`file_path` {file:?} contains a control character")));
+    }
     let listed = with_image_extension(&base.join(file));
     let image_path = resolve_image(&listed, path)?;
     let (iw, ih) = image_dimensions(&image_path)?;
@@ -64,18 +76,29 @@ fn frame_view(path: &Path, base: &Path, root: &Value, i: usize, frame: &Value) -
             expected: format!("{} frame {i} says {w}x{h}", path.display()),
         });
     }
-    let fx = match (num("fl_x")?, num("camera_angle_x")?) {
+    // A field of view is an angle strictly between 0 and π (180°); outside, tan gives a focal length of 0, ∞ or
+    // below 0.
+    let angle = |key: &str| -> Result<Option<f64>, IngestError> {
+        match num(key)? {
+            Some(a) if !(a > 0.0 && a < std::f64::consts::PI) => {
+                Err(err(format!("`{key}` = {a} is not a field of view in (0, π): no valid focal length")))
+            }
+            a => Ok(a),
+        }
+    };
+    let fx = match (num("fl_x")?, angle("camera_angle_x")?) {
         (Some(f), _) => f,
         (None, Some(a)) => 0.5 * w / (0.5 * a).tan(),
         (None, None) => return Err(err("no `fl_x` or `camera_angle_x`".into())),
     };
-    let fy = match (num("fl_y")?, num("camera_angle_y")?) {
+    let fy = match (num("fl_y")?, angle("camera_angle_y")?) {
         (Some(f), _) => f,
         (None, Some(a)) => 0.5 * h / (0.5 * a).tan(),
         (None, None) => fx,
     };
-    if fx <= 0.0 || fy <= 0.0 {
-        return Err(err(format!("focal lengths ({fx}, {fy}) must be positive")));
+    // A `camera_angle_x` of 0 gives an infinite focal length, one of π or more a negative one.
+    if !(fx.is_finite() && fy.is_finite() && fx > 0.0 && fy > 0.0) {
+        return Err(err(format!("focal lengths ({fx}, {fy}) must be positive and finite")));
     }
     // Default principal point: the image centre, w/2 in the +0.5-centre convention.
     let cx = num("cx")?.unwrap_or(0.5 * w) - 0.5;

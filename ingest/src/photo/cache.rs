@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::image_io::{DecodedImage, read_image};
+use super::image_io::{DecodedImage, read_image_checked};
 use super::{LinearImage, PhotoError};
 use crate::camera::Camera;
 
@@ -108,11 +108,16 @@ pub fn read_manifest(dir: &Path, name: &str) -> Result<ManifestEntry, PhotoError
     check_name(dir, name)?;
     let (_, json_path) = cached_paths(dir, name);
     let text = std::fs::read(&json_path).map_err(|source| PhotoError::Read { path: json_path.clone(), source })?;
-    let entry: ManifestEntry = serde_json::from_slice(&text)
-        .map_err(|e| PhotoError::Manifest { path: json_path.clone(), message: e.to_string() })?;
+    parse_manifest(&json_path, &text)
+}
+
+/// Parses and checks a manifest entry already in memory; `json_path` is used only in error messages.
+pub fn parse_manifest(json_path: &Path, bytes: &[u8]) -> Result<ManifestEntry, PhotoError> {
+    let entry: ManifestEntry = serde_json::from_slice(bytes)
+        .map_err(|e| PhotoError::Manifest { path: json_path.to_path_buf(), message: e.to_string() })?;
     if entry.format != MANIFEST_FORMAT || entry.version != MANIFEST_VERSION {
         return Err(PhotoError::Manifest {
-            path: json_path,
+            path: json_path.to_path_buf(),
             message: format!(
                 "format {:?} version {} is not {MANIFEST_FORMAT:?} version {MANIFEST_VERSION}",
                 entry.format, entry.version
@@ -120,7 +125,10 @@ pub fn read_manifest(dir: &Path, name: &str) -> Result<ManifestEntry, PhotoError
         });
     }
     if (entry.camera.width, entry.camera.height) != (entry.width, entry.height) {
-        return Err(PhotoError::Manifest { path: json_path, message: "camera size differs from image size".into() });
+        return Err(PhotoError::Manifest {
+            path: json_path.to_path_buf(),
+            message: "camera size differs from image size".into(),
+        });
     }
     Ok(entry)
 }
@@ -129,6 +137,17 @@ pub fn read_manifest(dir: &Path, name: &str) -> Result<ManifestEntry, PhotoError
 /// image file and say what is wrong (missing, undecodable, size differing from the manifest).
 pub fn read_cached(dir: &Path, name: &str) -> Result<(Camera, LinearImage), PhotoError> {
     let entry = read_manifest(dir, name)?;
+    read_cached_entry(dir, name, entry)
+}
+
+/// [`read_cached`] with the manifest's bytes already in memory; the image is read from `dir`.
+pub fn read_cached_bytes(dir: &Path, name: &str, manifest: &[u8]) -> Result<(Camera, LinearImage), PhotoError> {
+    check_name(dir, name)?;
+    let entry = parse_manifest(&cached_paths(dir, name).1, manifest)?;
+    read_cached_entry(dir, name, entry)
+}
+
+fn read_cached_entry(dir: &Path, name: &str, entry: ManifestEntry) -> Result<(Camera, LinearImage), PhotoError> {
     let (_, json_path) = cached_paths(dir, name);
     if entry.image.contains(['/', '\\']) || entry.image.starts_with('.') {
         return Err(PhotoError::Manifest {
@@ -137,18 +156,37 @@ pub fn read_cached(dir: &Path, name: &str) -> Result<(Camera, LinearImage), Phot
         });
     }
     let exr_path = dir.join(&entry.image);
-    let img = match read_image(&exr_path)? {
+    if !exr_path.is_file() {
+        return Err(PhotoError::Manifest {
+            path: json_path,
+            message: format!("lists image {:?}, which does not exist", entry.image),
+        });
+    }
+    // A size mismatch is the manifest's and the image's disagreement: the error names both.
+    let size_error = |found: (u32, u32)| PhotoError::Manifest {
+        path: json_path.clone(),
+        message: format!(
+            "says {}x{} but its image {} is {}x{}",
+            entry.width,
+            entry.height,
+            exr_path.display(),
+            found.0,
+            found.1
+        ),
+    };
+    let decoded = match read_image_checked(&exr_path, Some((entry.width, entry.height))) {
+        Ok((decoded, _)) => decoded,
+        Err(PhotoError::WrongSize { found, .. }) => return Err(size_error(found)),
+        Err(e) => return Err(e),
+    };
+    let img = match decoded {
         DecodedImage::Linear(img) => img,
         DecodedImage::Display(_) => {
             return Err(PhotoError::Unsupported { path: exr_path, message: "cached image is not an EXR".into() });
         }
     };
     if (img.width, img.height) != (entry.width, entry.height) {
-        return Err(PhotoError::WrongSize {
-            path: exr_path,
-            expected: (entry.width, entry.height),
-            found: (img.width, img.height),
-        });
+        return Err(size_error((img.width, img.height)));
     }
     Ok((entry.camera, img))
 }

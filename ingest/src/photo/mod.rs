@@ -32,7 +32,7 @@ use serde::{Deserialize, Serialize};
 use crate::camera::Camera;
 
 pub use cache::{read_cached, write_cached, write_exr};
-pub use image_io::{DecodedImage, DisplayImage, read_image};
+pub use image_io::{DecodedImage, DisplayImage, PixelReport, decode_image, read_image, read_image_checked};
 pub use response::{ResponseCurve, merge_bracket, recover_response};
 
 /// A problem with one photo file (or with the processing of the image read from it). Every variant names the
@@ -182,21 +182,24 @@ pub fn prepare_view(
     camera: &Camera,
     opts: &PhotoOptions,
 ) -> Result<(Camera, LinearImage), PhotoError> {
+    prepare_view_counted(image_path, camera, opts).map(|(camera, image, _)| (camera, image))
+}
+
+/// [`prepare_view`], also returning the pixels masked on decoding because their value is not a radiance (NaN,
+/// infinite or negative values in a linear file), for the caller to report.
+pub fn prepare_view_counted(
+    image_path: &Path,
+    camera: &Camera,
+    opts: &PhotoOptions,
+) -> Result<(Camera, LinearImage, PixelReport), PhotoError> {
     if opts.downscale == 0 {
         return Err(PhotoError::Process {
             path: image_path.to_path_buf(),
             source: OpError::Invalid("downscale factor must be at least 1".into()),
         });
     }
-    let decoded = read_image(image_path)?;
-    let (w, h) = decoded.size();
-    if (w, h) != (camera.width, camera.height) {
-        return Err(PhotoError::WrongSize {
-            path: image_path.to_path_buf(),
-            expected: (camera.width, camera.height),
-            found: (w, h),
-        });
-    }
+    // The size is checked against the camera from the header, before any pixel is decoded.
+    let (decoded, report) = read_image_checked(image_path, Some((camera.width, camera.height)))?;
     let linear = match decoded {
         DecodedImage::Linear(img) => img,
         DecodedImage::Display(img) => {
@@ -204,9 +207,10 @@ pub fn prepare_view(
         }
     };
     let (camera, linear) = undistort::undistort(&linear, camera).at(image_path)?;
-    if opts.downscale > 1 {
-        downscale::downscale(&linear, &camera, opts.downscale).at(image_path)
+    let (camera, linear) = if opts.downscale > 1 {
+        downscale::downscale(&linear, &camera, opts.downscale).at(image_path)?
     } else {
-        Ok((camera, linear))
-    }
+        (camera, linear)
+    };
+    Ok((camera, linear, report))
 }

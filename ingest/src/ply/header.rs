@@ -45,6 +45,20 @@ impl ScalarType {
         }
     }
 
+    /// Smallest and largest value of an integer type (the whole f64 line for float types).
+    #[must_use]
+    pub fn integer_range(self) -> (f64, f64) {
+        match self {
+            Self::I8 => (f64::from(i8::MIN), f64::from(i8::MAX)),
+            Self::U8 => (0.0, f64::from(u8::MAX)),
+            Self::I16 => (f64::from(i16::MIN), f64::from(i16::MAX)),
+            Self::U16 => (0.0, f64::from(u16::MAX)),
+            Self::I32 => (f64::from(i32::MIN), f64::from(i32::MAX)),
+            Self::U32 => (0.0, f64::from(u32::MAX)),
+            Self::F32 | Self::F64 => (f64::NEG_INFINITY, f64::INFINITY),
+        }
+    }
+
     /// True for the integer types.
     #[must_use]
     pub fn is_integer(self) -> bool {

@@ -36,13 +36,13 @@ pub fn read_ply_bytes(path: &Path, bytes: &[u8]) -> Result<PlyRead, IngestError>
     let data = &bytes[header.data_offset..];
     check_counts_fit(path, &header, data.len())?;
     match header.encoding {
-        Encoding::BinaryLittleEndian => read_body(path, &header, &mut Binary::<false> { data, pos: 0 }),
-        Encoding::BinaryBigEndian => read_body(path, &header, &mut Binary::<true> { data, pos: 0 }),
+        Encoding::BinaryLittleEndian => read_body(path, &header, data.len(), &mut Binary::<false> { data, pos: 0 }),
+        Encoding::BinaryBigEndian => read_body(path, &header, data.len(), &mut Binary::<true> { data, pos: 0 }),
         Encoding::Ascii => {
             let text = std::str::from_utf8(data).map_err(|e| {
                 IngestError::format(path, format!("ASCII PLY body is not text (byte {})", e.valid_up_to()))
             })?;
-            read_body(path, &header, &mut Ascii { tokens: text.split_ascii_whitespace() })
+            read_body(path, &header, data.len(), &mut Ascii { tokens: text.split_ascii_whitespace() })
         }
     }
 }
@@ -54,10 +54,7 @@ fn check_counts_fit(path: &Path, header: &Header, available: usize) -> Result<()
         let before = needed;
         // Binary: a row takes at least its fixed-size scalars and list counts. ASCII: every property is at least
         // one character plus one separator.
-        let min_row = match header.encoding {
-            Encoding::Ascii => 2 * e.props.len(),
-            _ => e.min_binary_row(),
-        };
+        let min_row = min_row(header.encoding, e, 0);
         let element_bytes = e.count.checked_mul(min_row);
         needed = match element_bytes.and_then(|b| needed.checked_add(b)) {
             Some(n) => n,
@@ -83,6 +80,37 @@ fn check_counts_fit(path: &Path, header: &Header, available: usize) -> Result<()
         }
     }
     Ok(())
+}
+
+/// Fewest bytes a row of `e` takes with `items` items in its vertex index list (0 for other lists). Binary: its
+/// fixed-size scalars, list counts and those items. ASCII: every value is at least one character plus one
+/// separator.
+fn min_row(encoding: Encoding, e: &Element, items: usize) -> usize {
+    match encoding {
+        Encoding::Ascii => 2 * (e.props.len() + items),
+        _ => e.min_binary_row() + items * vertex_index_item_size(e),
+    }
+}
+
+/// How many faces of `e` the `available` bytes can hold when every face is valid (at least 3 vertex indices):
+/// the most worth reserving per-face buffers for. A file with more faces is refused while they are read.
+fn faces_that_fit(encoding: Encoding, e: &Element, available: usize) -> usize {
+    let items = if e.props.iter().any(is_vertex_indices) { 3 } else { 0 };
+    e.count.min(available / min_row(encoding, e, items).max(1))
+}
+
+/// True for the face property read as the vertex index list (the first list named `vertex_indices` or
+/// `vertex_index`).
+fn is_vertex_indices(p: &super::header::Property) -> bool {
+    matches!(p.kind, PropertyKind::List { .. }) && (p.name == "vertex_indices" || p.name == "vertex_index")
+}
+
+/// Size in bytes of one item of `e`'s vertex index list (0 without one).
+fn vertex_index_item_size(e: &Element) -> usize {
+    e.props.iter().find(|p| is_vertex_indices(p)).map_or(0, |p| match p.kind {
+        PropertyKind::List { item, .. } => item.size(),
+        PropertyKind::Scalar(_) => 0,
+    })
 }
 
 /// Why one value could not be read.
@@ -142,15 +170,22 @@ impl Source for Ascii<'_> {
     fn scalar(&mut self, t: ScalarType) -> Result<f64, ValueError> {
         let tok = self.tokens.next().ok_or(ValueError::Eof)?;
         if t.is_integer() {
-            if let Ok(v) = tok.parse::<i64>() {
+            let v = match tok.parse::<i64>() {
                 // i64 → f64 is exact for every value a PLY integer type can hold (at most 32 bits).
-                return Ok(v as f64);
-            }
-            // Some writers print integers as "3.0"; accept integral floats.
-            return match tok.parse::<f64>() {
-                Ok(v) if v.fract() == 0.0 => Ok(v),
-                _ => Err(ValueError::Bad(format!("{tok:?} is not an integer"))),
+                Ok(v) => v as f64,
+                // Some writers print integers as "3.0"; accept integral floats.
+                Err(_) => match tok.parse::<f64>() {
+                    Ok(v) if v.fract() == 0.0 => v,
+                    _ => return Err(ValueError::Bad(format!("{tok:?} is not an integer"))),
+                },
             };
+            // A binary file cannot hold a value outside its declared type; an ASCII one must not either, or a
+            // later cast to that type would silently clamp it.
+            let (lo, hi) = t.integer_range();
+            if !(lo..=hi).contains(&v) {
+                return Err(ValueError::Bad(format!("{tok:?} is outside the range of its type {t:?} ({lo}..={hi})")));
+            }
+            return Ok(v);
         }
         tok.parse::<f64>().map_err(|_| ValueError::Bad(format!("{tok:?} is not a number")))
     }
@@ -179,7 +214,8 @@ enum Column {
     U8(Vec<u8>),
 }
 
-fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S) -> Result<PlyRead, IngestError> {
+/// Reads every element; `available` is the number of data bytes (bounds the per-face reservations).
+fn read_body<S: Source>(path: &Path, header: &Header, available: usize, src: &mut S) -> Result<PlyRead, IngestError> {
     let vertex_count = header
         .elements
         .iter()
@@ -188,6 +224,11 @@ fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S) -> Result<Ply
         .count;
     if vertex_count > u32::MAX as usize {
         return Err(IngestError::format(path, format!("{vertex_count} vertices exceed the 2^32 vertex limit")));
+    }
+    for name in ["vertex", "face"] {
+        if header.elements.iter().filter(|e| e.name == name).count() > 1 {
+            return Err(IngestError::format(path, format!("PLY header declares more than one `{name}` element")));
+        }
     }
     let mut positions = Vec::new();
     let mut normals = None;
@@ -199,7 +240,12 @@ fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S) -> Result<Ply
                 positions = p;
                 normals = n;
             }
-            "face" => faces = Some(read_faces(path, element, vertex_count, src)?),
+            "face" => {
+                let reserve = faces_that_fit(header.encoding, element, available);
+                faces = Some(read_faces(path, element, vertex_count, reserve, src)?);
+            }
+            // An element without properties has rows of zero bytes: nothing to skip, however large its count.
+            _ if element.props.is_empty() => {}
             _ => {
                 for i in 0..element.count {
                     for prop in &element.props {
@@ -281,6 +327,9 @@ fn read_vertices<S: Source>(path: &Path, element: &Element, src: &mut S) -> Resu
         if !p.iter().all(|v| v.is_finite()) {
             return Err(IngestError::element(path, "vertex", i, format!("position {p:?} is not finite (NaN or Inf)")));
         }
+        if want_normals && !n.iter().all(|v| v.is_finite()) {
+            return Err(IngestError::element(path, "vertex", i, format!("normal {n:?} is not finite (NaN or Inf)")));
+        }
         positions.push(Vec3::from_array(p));
         if want_normals {
             normals.push(Vec3::from_array(n));
@@ -297,10 +346,12 @@ struct Faces {
     polygons: usize,
 }
 
+/// Reads the faces; per-face buffers reserve room for `reserve` faces (they grow if polygons need more).
 fn read_faces<S: Source>(
     path: &Path,
     element: &Element,
     vertex_count: usize,
+    reserve: usize,
     src: &mut S,
 ) -> Result<Faces, IngestError> {
     let face_err = |i: usize, msg: String| IngestError::element(path, "face", i, msg);
@@ -324,9 +375,9 @@ fn read_faces<S: Source>(
             PropertyKind::Scalar(t) => {
                 names.push(p.name.clone());
                 columns.push(match t {
-                    ScalarType::F32 | ScalarType::F64 => Column::F32(Vec::with_capacity(element.count)),
-                    ScalarType::U8 => Column::U8(Vec::with_capacity(element.count)),
-                    _ => Column::I32(Vec::with_capacity(element.count)),
+                    ScalarType::F32 | ScalarType::F64 => Column::F32(Vec::with_capacity(reserve)),
+                    ScalarType::U8 => Column::U8(Vec::with_capacity(reserve)),
+                    _ => Column::I32(Vec::with_capacity(reserve)),
                 });
                 FaceSlot::Column(columns.len() - 1)
             }
@@ -339,8 +390,8 @@ fn read_faces<S: Source>(
     if !item_type.is_integer() {
         return Err(IngestError::format(path, "PLY `vertex_indices` items are not an integer type"));
     }
-    let mut triangles = Vec::with_capacity(element.count);
-    let mut source_face = Vec::with_capacity(element.count);
+    let mut triangles = Vec::with_capacity(reserve);
+    let mut source_face = Vec::with_capacity(reserve);
     let mut polygons = 0usize;
     let mut poly: Vec<u32> = Vec::with_capacity(8);
     for i in 0..element.count {

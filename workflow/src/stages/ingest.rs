@@ -56,5 +56,15 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         scan.objects.len(),
         scan.views.len()
     ));
+    let removed = &scan.removed;
+    if removed.zero_area_triangles > 0 {
+        let objects: Vec<String> = removed.objects_without_area.iter().map(|o| o.id.to_string()).collect();
+        let left_out = if objects.is_empty() {
+            String::new()
+        } else {
+            format!("; objects {} had no area and are left out", objects.join(", "))
+        };
+        ctx.note(&format!("{} zero-area triangles dropped{left_out}", removed.zero_area_triangles));
+    }
     Ok(vec![PathBuf::from("ingest").join(MESH_FILE), PathBuf::from("ingest").join(SCENE_FILE)])
 }

@@ -39,24 +39,28 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     }
     let opts = PhotoOptions { downscale: ctx.plan.images.downscale, ..PhotoOptions::default() };
     let bar = ctx.progress("preparing photos", chosen.len() as u64);
-    let written: Vec<Vec<PathBuf>> = chosen
+    let written: Vec<(Vec<PathBuf>, usize)> = chosen
         .par_iter()
         .map(|v| {
             if bar.stop_requested() {
                 return Err(StageError::Interrupted);
             }
-            let (camera, img) = ingest::photo::prepare_view(&v.image_path, &v.camera, &opts)?;
+            let (camera, img, report) = ingest::photo::prepare_view_counted(&v.image_path, &v.camera, &opts)?;
             ingest::photo::write_cached(&ctx.dir, &v.name, &camera, &img)?;
             bar.inc(1);
             let (exr, json) = ingest::photo::cache::cached_paths(Path::new("preprocess"), &v.name);
-            Ok(vec![exr, json])
+            Ok((vec![exr, json], report.masked()))
         })
         .collect::<Result<_, StageError>>()?;
     drop(bar);
     let list = ViewList { format: VIEWS_FORMAT.into(), views: chosen.iter().map(|v| v.name.clone()).collect() };
     write_json_atomic(&ctx.dir.join(VIEWS_FILE), &list)?;
     ctx.note(&format!("{} views prepared (downscale {})", chosen.len(), ctx.plan.images.downscale));
-    let mut outputs: Vec<PathBuf> = written.into_iter().flatten().collect();
+    let masked: usize = written.iter().map(|(_, m)| m).sum();
+    if masked > 0 {
+        ctx.note(&format!("{masked} photo pixels with a NaN, infinite or negative value masked"));
+    }
+    let mut outputs: Vec<PathBuf> = written.into_iter().flat_map(|(files, _)| files).collect();
     outputs.push(PathBuf::from("preprocess").join(VIEWS_FILE));
     Ok(outputs)
 }
