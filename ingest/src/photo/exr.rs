@@ -48,7 +48,9 @@ pub fn encode_rgb(
     });
     let image = Image::from_encoded_channels((width as usize, height as usize), compression.encoding(), channels);
     let mut out = Cursor::new(Vec::new());
-    image.write().to_buffered(&mut out)?;
+    // Sequential compression: the parallel writer stores blocks in the order they finish, so the same image
+    // would give different bytes from run to run, and every artefact is hashed into its stage's manifest.
+    image.write().non_parallel().to_buffered(&mut out)?;
     Ok(out.into_inner())
 }
 
@@ -84,6 +86,21 @@ pub fn encode_rgb_mask(width: u32, height: u32, rgb: &[f32], mask: &[u8]) -> Res
     let size = (width as usize, height as usize);
     let image = Image::from_layer(Layer::new(size, LayerAttributes::default(), Encoding::FAST_LOSSLESS, channels));
     let mut out = Cursor::new(Vec::new());
-    image.write().to_buffered(&mut out)?;
+    image.write().non_parallel().to_buffered(&mut out)?;
     Ok(out.into_inner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_same_image_always_encodes_to_the_same_bytes() {
+        // 512 rows: dozens of compressed blocks, which a parallel writer would reorder.
+        let pixel = |x: usize, y: usize| [(x * y % 97) as f32 / 97.0, (x + y) as f32 / 1024.0, ((x ^ y) % 13) as f32];
+        let first = encode_rgb(512, 512, Compression::Fast, pixel).unwrap();
+        for _ in 0..4 {
+            assert!(encode_rgb(512, 512, Compression::Fast, pixel).unwrap() == first);
+        }
+    }
 }
