@@ -7,7 +7,7 @@
 //! [`runner`] (skip/rerun decisions, [`manifest`]s) → [`stages`] (the work) → [`materials`], [`report`],
 //! [`export`]. The optimisation itself is the `optim` crate. The runner and the stages meet in
 //! [`stage_contract`]; what each stage writes and how it is read back is in [`artefacts`]. [`render`] is
-//! `pipeline render`.
+//! `pipeline render`; [`process_stats`] reads what the process costs (CPU time, peak RSS).
 
 pub mod artefacts;
 pub mod atomic_file;
@@ -18,6 +18,7 @@ pub mod manifest;
 pub mod materials;
 pub mod plan;
 pub mod presets;
+pub mod process_stats;
 pub mod render;
 pub mod report;
 pub mod runner;

@@ -158,11 +158,20 @@ pub fn run(
             reporter,
         };
         let started = std::time::Instant::now();
+        let cpu_before = crate::process_stats::cpu_time_s().unwrap_or(0.0);
         let outputs = exec.run(&ctx).map_err(|source| RunError::Stage { stage, source })?;
         let m = Manifest::build(stage.name(), config_sha256, inputs, &plan.output, &outputs).map_err(manifest_err)?;
         m.write(&dir).map_err(manifest_err)?;
         tracing::info!(stage = stage.name(), outputs = outputs.len(), "stage finished");
-        reporter.note(stage, &format!("done ({} outputs, {:.1} s)", outputs.len(), started.elapsed().as_secs_f64()));
+        let cpu =
+            crate::process_stats::cpu_time_s().map(|c| format!(", CPU {:.1} s", c - cpu_before)).unwrap_or_default();
+        let rss = crate::process_stats::peak_rss_bytes()
+            .map(|b| format!(", peak RSS {:.0} MB", b as f64 / 1e6))
+            .unwrap_or_default();
+        reporter.note(
+            stage,
+            &format!("done ({} outputs, {:.1} s{cpu}{rss})", outputs.len(), started.elapsed().as_secs_f64()),
+        );
         reran.get_or_insert(stage);
         outcomes.push((stage, StageOutcome::Ran(reason)));
     }

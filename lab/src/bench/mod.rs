@@ -7,7 +7,8 @@
 //!   re-render error on held-back views; CSV + SVG (error against time, Pareto front) + markdown. Scenes with
 //!   a textured (checker) object also run the per-triangle stage at every point and record its time, face
 //!   count and texture error ([`metrics::triangle_texture_error`]).
-//! - [`process_clock`]: CPU time and load average next to every wall time (timings on a shared machine).
+//! - `workflow::process_stats`: CPU time and load average next to every wall time (timings on a shared
+//!   machine).
 //! - [`ablation`]: Adam-phase convergence against the number of value paths, and the split of a fixed path
 //!   budget between value and gradient paths.
 //! - [`mitsuba`]: runs the Mitsuba baseline and our fit on the default scene in one process and reports the
@@ -18,7 +19,6 @@
 pub mod ablation;
 pub mod metrics;
 pub mod mitsuba;
-pub mod process_clock;
 pub mod scenes;
 pub mod tradeoff;
 
@@ -131,8 +131,8 @@ pub fn timed_point(
         settings: &setup.object,
         tracer: &tracer_settings,
     };
-    let load_avg_1m = process_clock::load_average_1m().unwrap_or(f64::NAN);
-    let cpu_before = process_clock::cpu_time_s().unwrap_or(f64::NAN);
+    let load_avg_1m = workflow::process_stats::load_average_1m().unwrap_or(f64::NAN);
+    let cpu_before = workflow::process_stats::cpu_time_s().unwrap_or(f64::NAN);
     let before = tracer::total_trace_stats();
     let t = Instant::now();
     let outcome = optim::fit::fit_objects(&inputs, None, &mut |_| Ok(()), &optim::NoProgress)?;
@@ -170,7 +170,7 @@ pub fn timed_point(
         }
     };
     let seconds = t.elapsed().as_secs_f64();
-    let cpu_seconds = process_clock::cpu_time_s().unwrap_or(f64::NAN) - cpu_before;
+    let cpu_seconds = workflow::process_stats::cpu_time_s().unwrap_or(f64::NAN) - cpu_before;
     let after = tracer::total_trace_stats();
     Ok(TimedPoint {
         fit,

@@ -6,7 +6,7 @@
 //! point ([`super::timed_point`]); their rows get the stage's time, the final face count and the texture error
 //! against the true checker ([`metrics::triangle_texture_error`]), and their Pareto front is on that texture
 //! error. Every row records wall time, this process's CPU time over the same span and the 1-minute load
-//! average at its start ([`super::process_clock`]); the Pareto front uses the wall time.
+//! average at its start (`workflow::process_stats`); the Pareto front uses the wall time.
 
 use std::path::{Path, PathBuf};
 

@@ -1,10 +1,10 @@
-//! Timings that survive a shared machine: this process's CPU time (user + system, all threads, from
-//! `/proc/self/stat`) next to the wall time, and the 1-minute load average (`/proc/loadavg`) at the start of
-//! a measurement. Linux only; elsewhere both read as errors and the bench records NaN.
+//! What this process costs, read from `/proc` (Linux; elsewhere every reading is `None`): its CPU time
+//! (user and system, all threads, `/proc/self/stat`) next to the wall time, its peak resident set size
+//! (`VmHWM` of `/proc/self/status`, what `getrusage` reports as `ru_maxrss`, read without `unsafe`), and the
+//! machine's 1-minute load average (`/proc/loadavg`), which says how far a wall time is inflated by other
+//! work. The runner reports them after every stage; the benchmarks record them per point.
 
 use std::path::Path;
-
-use super::BenchError;
 
 /// Clock ticks per second of `/proc/<pid>/stat`'s `utime`/`stime`: the kernel's `USER_HZ`, fixed at 100 by the
 /// Linux ABI on every architecture this project builds for (`sysconf(_SC_CLK_TCK)` would need `unsafe`).
@@ -12,24 +12,35 @@ use super::BenchError;
 pub const USER_HZ: f64 = 100.0;
 
 /// User + system CPU seconds of this process so far (all threads, including finished ones).
-pub fn cpu_time_s() -> Result<f64, BenchError> {
-    let path = Path::new("/proc/self/stat");
-    let text = read(path)?;
-    let (user, system) = parse_stat_cpu_ticks(&text)
-        .ok_or_else(|| BenchError::Io { path: path.to_path_buf(), message: "no utime/stime fields".into() })?;
-    Ok((user + system) as f64 / USER_HZ)
+#[must_use]
+pub fn cpu_time_s() -> Option<f64> {
+    let (user, system) = parse_stat_cpu_ticks(&read("/proc/self/stat")?)?;
+    Some((user + system) as f64 / USER_HZ)
 }
 
 /// The machine's 1-minute load average now.
-pub fn load_average_1m() -> Result<f64, BenchError> {
-    let path = Path::new("/proc/loadavg");
-    let text = read(path)?;
-    parse_loadavg_1m(&text)
-        .ok_or_else(|| BenchError::Io { path: path.to_path_buf(), message: format!("unparsable: {text:?}") })
+#[must_use]
+pub fn load_average_1m() -> Option<f64> {
+    parse_loadavg_1m(&read("/proc/loadavg")?)
 }
 
-fn read(path: &Path) -> Result<String, BenchError> {
-    std::fs::read_to_string(path).map_err(|e| BenchError::Io { path: path.to_path_buf(), message: e.to_string() })
+/// The largest resident set size this process has had so far, in bytes.
+#[must_use]
+pub fn peak_rss_bytes() -> Option<u64> {
+    parse_vm_hwm_bytes(&read("/proc/self/status")?)
+}
+
+fn read(path: &str) -> Option<String> {
+    std::fs::read_to_string(Path::new(path)).ok()
+}
+
+/// `VmHWM:   123456 kB` of a `/proc/<pid>/status`, in bytes.
+#[must_use]
+pub fn parse_vm_hwm_bytes(status: &str) -> Option<u64> {
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let mut f = line["VmHWM:".len()..].split_whitespace();
+    let kb: u64 = f.next()?.parse().ok()?;
+    (f.next()? == "kB").then_some(kb * 1024)
 }
 
 /// `utime` and `stime` (fields 14 and 15, in clock ticks) of a `/proc/<pid>/stat` line. The command name
@@ -54,6 +65,15 @@ pub fn parse_loadavg_1m(text: &str) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn peak_rss_is_read_from_vm_hwm_in_kilobytes() {
+        let status = "Name:\tpipeline\nVmPeak:\t  900000 kB\nVmHWM:\t   31832 kB\nVmRSS:\t   30000 kB\n";
+        assert_eq!(parse_vm_hwm_bytes(status), Some(31832 * 1024));
+        assert_eq!(parse_vm_hwm_bytes("VmRSS:\t1 kB\n"), None);
+        // This process has touched memory: its own reading exists and is at least a page.
+        assert!(peak_rss_bytes().is_some_and(|b| b >= 4096));
+    }
 
     #[test]
     fn stat_fields_are_counted_after_the_command_name() {
