@@ -1,12 +1,12 @@
 //! `lab`: the development commands. `lab synth DESC OUT_DIR` generates a synthetic Matterport-layout scan;
-//! `lab bench tradeoff | ablation | mitsuba` measure the fit's speed against its accuracy (docs/tradeoff/).
+//! `lab bench tradeoff | ablation | mitsuba | scale` measure the fit's speed against its accuracy (docs/tradeoff/).
 //! Exit codes: 0 success, 1 failure, 2 bad usage.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use lab::bench::{self, ablation, mitsuba, tradeoff};
+use lab::bench::{self, ablation, mitsuba, scale, tradeoff};
 
 /// Development tools of ipt: synthetic scans and benchmarks.
 #[derive(Debug, Parser)]
@@ -40,6 +40,11 @@ enum BenchCommand {
     Ablation(BenchAblationArgs),
     /// Mitsuba 3 baseline against our fit on the same scene: time to the same albedo error.
     Mitsuba(BenchMitsubaArgs),
+    /// The whole pipeline on scans of growing size: time, CPU, peak RSS per stage, accuracy (docs/scale/).
+    Scale(BenchScaleArgs),
+    /// One point of `scale`, in its own process (internal).
+    #[command(hide = true)]
+    ScalePoint(BenchScalePointArgs),
 }
 
 /// `lab bench tradeoff`.
@@ -81,6 +86,35 @@ struct BenchAblationArgs {
     /// Workspace root holding `data-fixtures/`.
     #[arg(long)]
     workspace: Option<PathBuf>,
+}
+
+/// `lab bench scale`.
+#[derive(Debug, clap::Args)]
+struct BenchScaleArgs {
+    /// Output directory.
+    #[arg(long, default_value = "docs/scale")]
+    out: PathBuf,
+    /// Axes to sweep (comma-separated: triangles, objects, photos, resolution; default all).
+    #[arg(long, value_delimiter = ',')]
+    axes: Vec<String>,
+    /// Two tiny points (smoke test).
+    #[arg(long)]
+    quick: bool,
+    /// Config override for every run (`--set object.holdout_pixels=512`).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Workspace root holding `data-fixtures/`.
+    #[arg(long)]
+    workspace: Option<PathBuf>,
+}
+
+/// `lab bench scale-point`.
+#[derive(Debug, clap::Args)]
+struct BenchScalePointArgs {
+    config: PathBuf,
+    stats: PathBuf,
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
 }
 
 /// `lab bench mitsuba`.
@@ -177,6 +211,18 @@ fn run_bench(what: BenchCommand) -> anyhow::Result<()> {
             };
             mitsuba::run(&opts)?;
         }
+        BenchCommand::Scale(a) => {
+            let opts = scale::ScaleOptions {
+                workspace: ws(a.workspace),
+                out: a.out.clone(),
+                axes: a.axes,
+                quick: a.quick,
+                set: a.set,
+            };
+            scale::run(&opts, |line| eprintln!("bench scale: {line}"))?;
+            eprintln!("bench: wrote {}/scale.{{csv,svg,md}}", a.out.display());
+        }
+        BenchCommand::ScalePoint(a) => scale::run_point(&a.config, &a.set, &a.stats)?,
     }
     Ok(())
 }

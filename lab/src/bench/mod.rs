@@ -11,6 +11,8 @@
 //!   machine).
 //! - [`ablation`]: Adam-phase convergence against the number of value paths, and the split of a fixed path
 //!   budget between value and gradient paths.
+//! - [`scale`]: the whole pipeline on scans of growing size (triangles, objects, photos, resolution), each
+//!   point in its own process: wall and CPU time and peak RSS per stage, held-out pixels, accuracy.
 //! - [`mitsuba`]: runs the Mitsuba baseline and our fit on the default scene in one process and reports the
 //!   time each needs to reach the same albedo error.
 //!
@@ -19,6 +21,7 @@
 pub mod ablation;
 pub mod metrics;
 pub mod mitsuba;
+pub mod scale;
 pub mod scenes;
 pub mod tradeoff;
 

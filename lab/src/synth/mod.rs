@@ -238,6 +238,12 @@ pub fn generate(desc_path: &Path, out_dir: &Path) -> Result<(), SynthError> {
     let desc = load_desc(desc_path)?;
     let built = build(desc, desc_path)?;
     check_hidden(&built, desc_path)?;
+    write_scan(&built, out_dir)
+}
+
+/// Writes the Matterport layout of a built scene (mesh, cameras, rendered photos, ground truth) into
+/// `out_dir`.
+pub fn write_scan(built: &BuiltScene, out_dir: &Path) -> Result<(), SynthError> {
     let id = built.desc.house_id.clone();
     let seg_dir = out_dir.join("house_segmentations");
     let cam_dir = out_dir.join("undistorted_camera_parameters");
@@ -256,12 +262,12 @@ pub fn generate(desc_path: &Path, out_dir: &Path) -> Result<(), SynthError> {
         &cam_dir.join(format!("{id}.conf")),
         matterport::conf_text(&built.desc, &built.cameras).as_bytes(),
     )?;
-    for (k, img) in photos(&built)?.iter().enumerate() {
+    for (k, img) in photos(built)?.iter().enumerate() {
         let path = img_dir.join(matterport::image_names(&built.desc, k).0);
         let bytes = matterport::exr_bytes(&path, img.width, img.height, &img.rgb)?;
         matterport::write_file(&path, &bytes)?;
     }
-    matterport::write_file(&out_dir.join("ground_truth_materials.json"), &json(&ground_truth_json(&built)))?;
+    matterport::write_file(&out_dir.join("ground_truth_materials.json"), &json(&ground_truth_json(built)))?;
     tracing::info!(out = %out_dir.display(), views = built.cameras.len(), "synthetic scan written");
     Ok(())
 }

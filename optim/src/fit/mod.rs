@@ -136,6 +136,9 @@ pub struct FitOutcome {
     /// Of `traced_paths`, the samples the tracer discarded because their estimate was not finite; at most
     /// [`samples::MAX_DISCARDED_FRACTION`] of them, else the fit fails ([`FitError::TooManyDiscarded`]).
     pub discarded_samples: u64,
+    /// Training and held-out pixels (after the held-out budget): what the decisions were made on.
+    pub train_pixels: usize,
+    pub holdout_pixels: usize,
 }
 
 /// Why a fit failed.

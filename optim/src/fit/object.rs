@@ -292,6 +292,8 @@ pub fn fit_objects(
         per_object,
         traced_paths,
         discarded_samples,
+        train_pixels: sets.train.len(),
+        holdout_pixels: sets.holdout.len(),
     })
 }
 

@@ -32,6 +32,12 @@ pub struct HistoryFile {
     /// Of these, the samples the tracer discarded as non-finite (`FitOutcome::discarded_samples`).
     #[serde(default)]
     pub discarded_samples: u64,
+    /// Training and held-out pixels of the fit (`FitOutcome::train_pixels`, `holdout_pixels`); 0 in files
+    /// written before the counts existed.
+    #[serde(default)]
+    pub train_pixels: usize,
+    #[serde(default)]
+    pub holdout_pixels: usize,
 }
 
 /// Reads `run_dir/object/materials.json`.

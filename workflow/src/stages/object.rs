@@ -91,6 +91,8 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         why: outcome.per_object.iter().map(|p| p.why.clone()).collect(),
         traced_paths: outcome.traced_paths,
         discarded_samples: outcome.discarded_samples,
+        train_pixels: outcome.train_pixels,
+        holdout_pixels: outcome.holdout_pixels,
     };
     write_json_atomic(&ctx.dir.join(MATERIALS_FILE), &materials)?;
     write_json_atomic(&ctx.dir.join(HISTORY_FILE), &history)?;
