@@ -317,7 +317,8 @@ pub fn run(opts: &ScaleOptions, mut on_point: impl FnMut(&str)) -> Result<(), Be
 fn tempfile_dir(out: &Path) -> Result<PathBuf, BenchError> {
     let dir = out.join(".scale-work");
     std::fs::create_dir_all(&dir).map_err(|e| BenchError::Io { path: dir.clone(), message: e.to_string() })?;
-    Ok(dir)
+    // Absolute: the run configs written below it name their scan by this path.
+    dir.canonicalize().map_err(|e| BenchError::Io { path: dir.clone(), message: e.to_string() })
 }
 
 fn pixels(m: &Measured) -> u64 {
