@@ -13,7 +13,7 @@ def main(argv=None) -> int:
     b = sub.add_parser("build", help="Mitsuba scene → Matterport-layout scan with ground truth")
     b.add_argument("scene", help="a scene name (see `list`) or a Mitsuba XML file")
     b.add_argument("out_dir", type=Path)
-    for k in ("width", "height", "spp", "positions", "novel_positions", "max_depth"):
+    for k in ("width", "height", "spp", "positions", "novel_positions", "novel_spp", "max_depth"):
         b.add_argument("--" + k.replace("_", "-"), type=int)
     b.add_argument("--up", choices=("y", "z"), help="up axis of an XML file given by path (default z)")
     b.add_argument("--hfov", type=float, default=60.0, help="horizontal field of view, degrees")
@@ -52,7 +52,7 @@ def main(argv=None) -> int:
         init_mitsuba(a.threads)
         xml, up, defaults = scenes.resolve(a.scene, a.out_dir)
         opts = dict(defaults)
-        for k in ("width", "height", "spp", "positions", "novel_positions", "max_depth"):
+        for k in ("width", "height", "spp", "positions", "novel_positions", "novel_spp", "max_depth"):
             if getattr(a, k) is not None:
                 opts[k] = getattr(a, k)
         house = Path(a.scene).stem if a.scene not in scenes.SCENES else a.scene

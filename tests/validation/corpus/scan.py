@@ -59,7 +59,7 @@ def load_scenes(xml_path: Path, mi):
     """(full scene, render scene): the full one has every shape (labels, geometry, ground truth); the render
     one lacks portals (null-BSDF shapes). The same object when the scene has none."""
     xml_path = Path(xml_path).resolve()
-    mi.Thread.thread().file_resolver().prepend(str(xml_path.parent))
+    mi.file_resolver().prepend(str(xml_path.parent))
     full = mi.load_file(str(xml_path), optimize=False)
     text = _null_shapes_removed(xml_path)
     if text == ET.tostring(ET.parse(xml_path).getroot(), encoding="unicode"):
@@ -149,6 +149,7 @@ def build(
     max_depth: int = 8,
     positions: int = 3,
     novel_positions: int = 2,
+    novel_spp: int | None = None,
     hfov: float = 60.0,
     seed: int = 0,
     threads: int = 1,
@@ -158,6 +159,8 @@ def build(
     """Builds the scan of `xml_path` into `out_dir` (module docs); returns the ground-truth record."""
     mi = convert.init_mitsuba(threads)
     t0 = time.time()
+    # Held-out renders are references for PSNR: 4× the training samples halves their noise.
+    novel_spp = novel_spp or 4 * spp
     out_dir = Path(out_dir)
     rot = convert.UP_ROTATIONS[up]
     full, render_scene = load_scenes(Path(xml_path), mi)
@@ -210,7 +213,7 @@ def build(
         (nov_dir / sub).mkdir(parents=True, exist_ok=True)
     (nov_dir / "undistorted_camera_parameters" / "novel.conf").write_text(cams.conf_text(novel))
     for k, cam in enumerate(novel):
-        img = render_view(render_scene, cam, rot, spp, max_depth, seed + 100003 + k, mi)
+        img = render_view(render_scene, cam, rot, novel_spp, max_depth, seed + 100003 + k, mi)
         layout.write_exr(nov_dir / "undistorted_color_images" / f"{cam.name}.exr", img)
         label, _, si = label_view(full, cam, rot, objects, mi)
         albedo = convert.base_color_image(full, si, label, objects, mi)
@@ -227,7 +230,7 @@ def build(
         "source_xml": str(Path(xml_path).resolve()),
         "up_axis_of_source": up,
         "settings": dict(width=width, height=height, spp=spp, max_depth=max_depth, positions=positions,
-                         novel_positions=novel_positions, hfov_deg=hfov, seed=seed, threads=threads,
+                         novel_positions=novel_positions, novel_spp=novel_spp, hfov_deg=hfov, seed=seed, threads=threads,
                          integrator="path", max_depth_convention="scattering events (Mitsuba max_depth - 1)"),
         "emitter_threshold": {"relative": EMITTER_THRESHOLD, "absolute": EMITTER_THRESHOLD * brightest,
                               "brightest": brightest},

@@ -53,7 +53,7 @@ SCENES = {
         sky_radiance=(3.0, 3.2, 3.6)), defaults=dict(ROOM_DEFAULTS, spp=256)),
     "house": SceneEntry("house", HouseSpec(
         name="house", seed=14, columns=(4.0, 3.5, 4.0), rows=(3.5, 3.0, 3.5, 3.0), height=2.5,
-        furniture_per_room=(6, 9), cabinets_per_room=2, spheres_per_room=3, box_tessellation=14,
+        furniture_per_room=(6, 9), cabinets_per_room=2, spheres_per_room=3, box_tessellation=17,
         sphere_subdivisions=4, surface_tessellation=8, textured_fraction=0.4, metal_fraction=0.15,
         plastic_fraction=0.25, ceiling_lights=("warm", "white", "cool", "warm", ""),
         uplights=("orange", "white", "green", "warm"), windows_per_exterior_wall=0.7, sky="envmap"),
