@@ -237,3 +237,27 @@ def test_modern_hall(modern_hall):
     oid = next(o["id"] for o in gt["objects"] if o["label"] == "FloorTiles")
     n = convert.face_normals(pos, tri[cols["segment_id"] == oid]).sum(axis=0)
     assert n[2] > 0.95 * np.linalg.norm(n)
+
+
+def test_daylight_panes_are_emitters_with_the_measured_sky(tmp_path):
+    """Under a constant sky every ray leaving a pane sees the sky: the measured pane radiance is the sky's
+    (the panes are absent from the photos, so the room is lit through the openings)."""
+    from dataclasses import replace
+
+    sky = (2.0, 2.5, 3.0)
+    spec = replace(scenes.SCENES["room-daylight"].spec, sky="constant", sky_radiance=sky, name="day")
+    xml = generate.write_scene(spec, tmp_path / "source")
+    scan.build(xml, tmp_path, "day", width=24, height=20, spp=4, positions=1, novel_positions=1, seed=2,
+               log=lambda *_: None)
+    gt = truth(tmp_path)
+    panes = [o for o in gt["objects"] if o["portal"]]
+    assert panes and all(o["emitting"] and o["kind"] == "emitter" for o in panes)
+    for o in panes:
+        assert o["emission"] == pytest.approx(sky, rel=1e-4), o["label"]
+    assert gt["emitter_threshold"]["brightest"] == pytest.approx(max(sky), rel=1e-4)
+    check_segment_ids(tmp_path, "day")
+    check_photos(tmp_path)
+    # Windows are seen, and the photos are lit (the panes do not block the sky).
+    assert any(o["seen"] for o in panes)
+    img = layout.read_exr(tmp_path / "undistorted_color_images" / "day-p00_i1_0.exr")
+    assert img.mean() > 0.01

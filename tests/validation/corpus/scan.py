@@ -58,13 +58,22 @@ def _null_shapes_removed(xml_path: Path) -> str:
 def load_scenes(xml_path: Path, mi):
     """(full scene, render scene): the full one has every shape (labels, geometry, ground truth); the render
     one lacks portals (null-BSDF shapes). The same object when the scene has none."""
+    import drjit as dr
+
     xml_path = Path(xml_path).resolve()
     mi.file_resolver().prepend(str(xml_path.parent))
-    full = mi.load_file(str(xml_path), optimize=False)
-    text = _null_shapes_removed(xml_path)
-    if text == ET.tostring(ET.parse(xml_path).getroot(), encoding="unicode"):
-        return full, full
-    return full, mi.load_string(text, optimize=False)
+    # Building an `envmap` emitter never returns in a one-worker thread pool (Mitsuba 3.9.1, measured here):
+    # scenes load with two workers, then the caller's count is restored for rendering.
+    threads = dr.thread_count()
+    dr.set_thread_count(max(threads, 2))
+    try:
+        full = mi.load_file(str(xml_path), optimize=False)
+        text = _null_shapes_removed(xml_path)
+        if text == ET.tostring(ET.parse(xml_path).getroot(), encoding="unicode"):
+            return full, full
+        return full, mi.load_string(text, optimize=False)
+    finally:
+        dr.set_thread_count(threads)
 
 
 def render_view(scene, cam: cams.Camera, rot: np.ndarray, spp: int, max_depth: int, seed: int, mi) -> np.ndarray:
