@@ -33,3 +33,15 @@ validation:
 
 bench: setup
 	$(CARGO) bench --workspace
+
+# The realistic evaluation corpus (docs/realistic/README.md): every named scene built into CORPUS_DIR, outside
+# git. Renders on one thread by default (CORPUS_THREADS); `house` takes the longest.
+CORPUS_DIR ?= $(HOME)/.cache/ipt/corpus
+CORPUS_SCENES ?= room-textured room-two-lights room-daylight modern-hall house
+CORPUS_THREADS ?= 1
+.PHONY: corpus
+corpus:
+	@for s in $(CORPUS_SCENES); do \
+	  echo "corpus: $$s -> $(CORPUS_DIR)/$$s"; \
+	  scripts/corpus build $$s $(CORPUS_DIR)/$$s --threads $(CORPUS_THREADS) || exit 1; \
+	done
