@@ -9,6 +9,7 @@ in the scan frame). Metrics, one CSV row each (`scene,metric,subset,value,count`
   such pixels of all held-out views and the three channels). The estimate at a pixel is the albedo of the
   exported triangle hit by the same pixel-centre ray; where the ray misses the export (or there is none) it
   is the per-object base colour of the true object. Conductors' truth is their F0 colour (as in the fit).
+- `albedo_export_coverage`: the share of those pixels whose ray hit the export (the rest use the fallback).
 - `albedo_l1` per kind (diffuse / glossy / metal / all): mean over the objects some training photo sees of
   the mean absolute RGB difference of the per-object base colour.
 - `emitter_iou`: intersection over union of the sets of emitting objects; an object emits when its largest
@@ -160,6 +161,10 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
         t_imgs.append(t), e_imgs.append(e), masks.append(m)
     value, n = albedo_psnr(t_imgs, e_imgs, masks)
     row("albedo_psnr", "export" if mesh.is_file() else "per-object", value, n)
+    if mesh.is_file():
+        # Share of the scored pixels whose ray hit the export: low means the export is not in the scan frame.
+        covered = sum(int((hit & m).sum()) for (_, hit), m in zip(exported, masks))
+        row("albedo_export_coverage", "pixels", covered / n if n else math.nan, n)
 
     # Per-object albedo L1 and roughness.
     seen = [o for o in truth.values() if o["seen"] and not o["emitting"] and o["id"] in est]
