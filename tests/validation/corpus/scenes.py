@@ -6,7 +6,7 @@
 | room-textured   | generator: 3 × 2.5 × 2.2 m room         | textures on floor, walls and boxes; warm ceiling light, |
 |                 |                                         | hidden white uplight                                   |
 | room-two-lights | generator: same room                    | a cool ceiling light and a hidden orange uplight;      |
-|                 |                                         | plastic and metal boxes                                |
+|                 |                                         | boxes drawn 35 % rough metal, 35 % rough plastic       |
 | room-daylight   | generator: same room with windows       | no lamps: an envmap sky through window panes           |
 | house           | generator: 12 rooms joined by doors     | scale: ≥ 500 k triangles, ≥ 150 objects, ≥ 8 lights    |
 | tiny            | generator: the textured room, 1 box     | the test scene (40 × 32 pixels, one tripod position)   |
