@@ -21,8 +21,7 @@ the same bytes. Coordinates are metres, z up (no rotation needed when converting
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -369,7 +368,7 @@ def build_house(spec: HouseSpec):
                 holes.append((s0, s0 + ww, spec.window_sill, spec.window_sill + wh))
                 along = (b - a) / length
                 c = a + (s0 + ww / 2) * along + np.array([0, 0, spec.window_sill + wh / 2])
-                panes.append(Pane(f"window-{len(panes)}", c, along, (ww, wh), inward if exterior else inward))
+                panes.append(Pane(f"window-{len(panes)}", c, along, (ww, wh), inward))
         if not exterior:
             inward = np.cross([0, 0, 1.0], (b - a) / length)  # either side: the wall is two-sided
         m = pick_material(WALL_COLOURS)
@@ -501,10 +500,6 @@ def write_scene(spec: HouseSpec, out_dir: Path) -> Path:
     path = out_dir / "scene.xml"
     path.write_text("\n".join(parts) + "\n")
     return path
-
-
-def spec_with(spec: HouseSpec, **kw) -> HouseSpec:
-    return replace(spec, **kw)
 
 
 def triangle_count(spec: HouseSpec) -> tuple[int, int, int]:
