@@ -16,6 +16,8 @@ in the scan frame). Metrics, one CSV row each (`scene,metric,subset,value,count`
   emission channel exceeds `EMITTER_THRESHOLD` (scan.py: 1 %) of the brightest true light's, the same
   absolute threshold for truth and estimate (both are radiance in the photos' units).
 - `emission_rel_error` per true emitter: |e_est − e_true|₁ / |e_true|₁ (subset = object label; `mean`).
+- with an export: `emitter_iou` and `emission_rel_error` (subset `export`, `export mean`) again from the
+  export's area-weighted per-object emission (the per-triangle stage may re-solve the lights).
 - `roughness_abs_error` on glossy and metal objects that photos see.
 - `novel_psnr`, `novel_l1`: `pipeline render` of the run from the held-out cameras against Mitsuba's renders
   (subset `run`), and of the per-object truth (`truth-materials`: the ceiling of a per-object fit, which
@@ -93,6 +95,20 @@ def export_albedo_images(mesh_path: Path, cameras: list[cams.Camera], mi):
         img = np.zeros((len(hit), 3))
         img[hit] = albedo[prim[hit]]
         out.append((img.reshape(cam.height, cam.width, 3), hit.reshape(cam.height, cam.width)))
+    return out
+
+
+def export_emission(mesh_path: Path) -> dict[int, np.ndarray]:
+    """Area-weighted mean emission per `segment_id` of an export mesh."""
+    pos, tri, cols = layout.read_ply_faces(mesh_path)
+    if "emission_r" not in cols:
+        return {}
+    e = np.stack([cols["emission_r"], cols["emission_g"], cols["emission_b"]], 1).astype(np.float64)
+    area = 0.5 * np.linalg.norm(np.cross(pos[tri[:, 1]] - pos[tri[:, 0]], pos[tri[:, 2]] - pos[tri[:, 0]]), axis=1)
+    out = {}
+    for i in np.unique(cols["segment_id"]):
+        m = cols["segment_id"] == i
+        out[int(i)] = (e[m] * area[m, None]).sum(0) / max(area[m].sum(), 1e-30)
     return out
 
 
@@ -189,6 +205,15 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
         rel.append(r)
         row("emission_rel_error", f"{truth[i]['label']}{'' if truth[i]['seen'] else ' (unseen)'}", r, 1)
     row("emission_rel_error", "mean", float(np.mean(rel)) if rel else math.nan, len(rel))
+    if mesh.is_file():
+        # The per-triangle stage may re-solve the lights: the export's area-weighted emission per object.
+        emission = export_emission(mesh)
+        est_set = {i for i, e in emission.items() if i in truth and max(e) > threshold}
+        union = true_set | est_set
+        row("emitter_iou", "export", len(true_set & est_set) / len(union) if union else 1.0, len(union))
+        rel = [float(np.abs(emission.get(i, np.zeros(3)) - truth[i]["emission"]).sum()
+                     / np.abs(truth[i]["emission"]).sum()) for i in sorted(true_set)]
+        row("emission_rel_error", "export mean", float(np.mean(rel)) if rel else math.nan, len(rel))
 
     # Novel-view re-renders: the run's materials, and the per-object truth as a reference (the best a
     # per-object fit can reach through our renderer, including both renderers' Monte-Carlo noise).
