@@ -44,3 +44,15 @@ bench: setup
 ## Every ingest reader against 10^6 mutated inputs each (release; ~5 min on 2 cores); CASES=N to change.
 fuzz:
 	scripts/fuzz $(or $(CASES),1000000)
+
+# The realistic evaluation corpus (docs/realistic/README.md): every named scene built into CORPUS_DIR, outside
+# git. Renders on one thread by default (CORPUS_THREADS); `house` takes the longest.
+CORPUS_DIR ?= $(HOME)/.cache/ipt/corpus
+CORPUS_SCENES ?= room-textured room-two-lights room-daylight modern-hall house
+CORPUS_THREADS ?= 1
+.PHONY: corpus
+corpus:
+	@for s in $(CORPUS_SCENES); do \
+	  echo "corpus: $$s -> $(CORPUS_DIR)/$$s"; \
+	  scripts/corpus build $$s $(CORPUS_DIR)/$$s --threads $(CORPUS_THREADS) || exit 1; \
+	done

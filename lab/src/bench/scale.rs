@@ -73,7 +73,7 @@ struct Point {
 fn axis_values(axis: &str, quick: bool) -> Vec<u32> {
     match (axis, quick) {
         (_, true) => vec![4, 8],
-        ("triangles", _) => vec![0, 1, 2, 3],
+        ("triangles", _) => vec![0, 4, 12, 36],
         ("objects", _) => vec![0, 8, 24, 48],
         ("photos", _) => vec![8, 16, 32, 64],
         ("resolution", _) => vec![48, 96, 192, 384],

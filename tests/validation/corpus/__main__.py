@@ -1,0 +1,75 @@
+"""`python -m corpus` (run by `scripts/corpus`): build, score, generate and list the corpus scenes."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="scripts/corpus", description=__doc__)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    b = sub.add_parser("build", help="Mitsuba scene → Matterport-layout scan with ground truth")
+    b.add_argument("scene", help="a scene name (see `list`) or a Mitsuba XML file")
+    b.add_argument("out_dir", type=Path)
+    for k in ("width", "height", "spp", "positions", "novel_positions", "novel_spp", "max_depth"):
+        b.add_argument("--" + k.replace("_", "-"), type=int)
+    b.add_argument("--up", choices=("y", "z"), help="up axis of an XML file given by path (default z)")
+    b.add_argument("--hfov", type=float, default=60.0, help="horizontal field of view, degrees")
+    b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--threads", type=int, default=1)
+    s = sub.add_parser("score", help="score a pipeline run against a scan's ground truth")
+    s.add_argument("scan_dir", type=Path)
+    s.add_argument("run_dir", type=Path)
+    s.add_argument("out_csv", type=Path)
+    s.add_argument("--renders", type=Path, help="novel-view renders of the run (made here when missing)")
+    s.add_argument("--pipeline", type=Path, help="pipeline binary (default: target/{release,debug}/pipeline)")
+    s.add_argument("--render-spp", type=int, default=64)
+    g = sub.add_parser("generate", help="write a generated scene's Mitsuba XML, meshes and textures")
+    g.add_argument("scene")
+    g.add_argument("out_dir", type=Path)
+    sub.add_parser("list", help="the scene names")
+    a = ap.parse_args(argv)
+
+    from . import scenes
+
+    if a.cmd == "list":
+        for name, e in scenes.SCENES.items():
+            print(name, e.defaults)
+        return 0
+    if a.cmd == "generate":
+        from .convert import init_mitsuba
+        from .generate import write_scene
+
+        init_mitsuba(1)
+        print(write_scene(scenes.SCENES[a.scene].spec, a.out_dir))
+        return 0
+    if a.cmd == "build":
+        from . import scan
+        from .convert import init_mitsuba
+
+        init_mitsuba(a.threads)
+        xml, up, defaults = scenes.resolve(a.scene, a.out_dir)
+        opts = dict(defaults)
+        for k in ("width", "height", "spp", "positions", "novel_positions", "novel_spp", "max_depth"):
+            if getattr(a, k) is not None:
+                opts[k] = getattr(a, k)
+        house = Path(a.scene).stem if a.scene not in scenes.SCENES else a.scene
+        scan.build(xml, a.out_dir, house, up=a.up or up, hfov=a.hfov, seed=a.seed, threads=a.threads,
+                   scene_name=house, **opts)
+        return 0
+    if a.cmd == "score":
+        from . import score
+
+        t = time.time()
+        rows = score.score(a.scan_dir, a.run_dir, a.renders, a.pipeline, a.render_spp)
+        md = score.write_reports(rows, a.out_csv)
+        print(md.read_text(), end="")
+        print(f"scored in {time.time() - t:.1f} s: {a.out_csv}, {md}")
+        return 0
+    return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

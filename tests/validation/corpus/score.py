@@ -1,0 +1,262 @@
+"""Scores a finished pipeline run against a corpus scan's ground truth (`scripts/corpus score`).
+
+Inputs: the scan directory (`ground_truth.json`, `novel/`) and the run directory (`materials.json`, the
+per-object result; `export/mesh.ply`, the per-triangle result with face columns `albedo_r/g/b`, `segment_id`,
+in the scan frame). Metrics, one CSV row each (`scene,metric,subset,value,count`) and a markdown table:
+
+- `albedo_psnr` (dB): per-pixel base colour on the held-out views, over pixels whose true object does not
+  emit (FIPT/IRIS convention: both images clamped to [0, 1], PSNR = 10·log10(1 / MSE), MSE pooled over all
+  such pixels of all held-out views and the three channels). The estimate at a pixel is the albedo of the
+  exported triangle hit by the same pixel-centre ray; where the ray misses the export (or there is none) it
+  is the per-object base colour of the true object. Conductors' truth is their F0 colour (as in the fit).
+- `albedo_export_coverage`: the share of those pixels whose ray hit the export (the rest use the fallback).
+- `albedo_l1` per kind (diffuse / glossy / metal / all): mean over the objects some training photo sees of
+  the mean absolute RGB difference of the per-object base colour.
+- `emitter_iou`: intersection over union of the sets of emitting objects; an object emits when its largest
+  emission channel exceeds `EMITTER_THRESHOLD` (scan.py: 1 %) of the brightest true light's, the same
+  absolute threshold for truth and estimate (both are radiance in the photos' units).
+- `emission_rel_error` per true emitter: |e_est − e_true|₁ / |e_true|₁ (subset = object label; `mean`).
+- with an export: `emitter_iou` and `emission_rel_error` (subset `export`, `export mean`) again from the
+  export's area-weighted per-object emission (the per-triangle stage may re-solve the lights).
+- `roughness_abs_error` on glossy and metal objects that photos see.
+- `novel_psnr`, `novel_l1`: `pipeline render` of the run from the held-out cameras against Mitsuba's renders
+  (subset `run`), and of the per-object truth (`truth-materials`: the ceiling of a per-object fit, which
+  includes texture averaging and both renderers' noise).
+  Exposure: both images are multiplied by 1 / (99th percentile of the true render's luminance), then
+  clamped to [0, 1]; PSNR = 10·log10(1 / MSE) per view, averaged over views; L1 = mean absolute difference
+  after the same normalisation.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from . import cameras as cams
+from . import layout
+
+KINDS = ("diffuse", "glossy", "metal")
+
+
+def psnr(mse: float) -> float:
+    return math.inf if mse <= 0 else 10.0 * math.log10(1.0 / mse)
+
+
+def albedo_psnr(truth: list[np.ndarray], estimate: list[np.ndarray], masks: list[np.ndarray]) -> tuple[float, int]:
+    """PSNR (dB) of clamped albedo images over the masked pixels, pooled over views; and the pixel count."""
+    se, n = 0.0, 0
+    for t, e, m in zip(truth, estimate, masks):
+        d = np.clip(e[m], 0, 1) - np.clip(t[m], 0, 1)
+        se += float((d * d).sum())
+        n += int(m.sum()) * 3
+    return (psnr(se / n) if n else math.nan), n // 3
+
+
+def exposure_scale(img: np.ndarray) -> float:
+    lum = 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
+    p = float(np.percentile(lum, 99))
+    return 1.0 / p if p > 0 else 1.0
+
+
+def image_scores(truth: np.ndarray, estimate: np.ndarray) -> tuple[float, float]:
+    """(PSNR, L1) after exposure normalisation by the truth's 99th-percentile luminance and clamping."""
+    s = exposure_scale(truth)
+    t = np.clip(truth * s, 0, 1)
+    e = np.clip(np.nan_to_num(estimate) * s, 0, 1)
+    return psnr(float(np.mean((t - e) ** 2))), float(np.mean(np.abs(t - e)))
+
+
+def export_albedo_images(mesh_path: Path, cameras: list[cams.Camera], mi):
+    """Per camera: (albedo (H, W, 3), hit mask) of the pixel-centre rays against the exported mesh."""
+    pos, tri, cols = layout.read_ply_faces(mesh_path)
+    albedo = np.stack([cols["albedo_r"], cols["albedo_g"], cols["albedo_b"]], 1).astype(np.float64)
+    from plyfile import PlyData, PlyElement
+
+    with tempfile.TemporaryDirectory(prefix="corpus_score_") as tmp:
+        p = Path(tmp) / "m.ply"
+        v = np.empty(len(pos), dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+        v["x"], v["y"], v["z"] = pos.T
+        f = np.empty(len(tri), dtype=[("vertex_indices", "i4", (3,))])
+        f["vertex_indices"] = tri
+        PlyData([PlyElement.describe(v, "vertex"), PlyElement.describe(f, "face")]).write(str(p))
+        scene = mi.load_dict({"type": "scene", "m": {"type": "ply", "filename": str(p), "face_normals": True}})
+    out = []
+    for cam in cameras:
+        o, d = cams.pixel_rays(cam)
+        ray = mi.Ray3f(mi.Point3f(*o.T.astype(np.float32)), mi.Vector3f(*d.T.astype(np.float32)))
+        si = scene.ray_intersect(ray)
+        hit = np.array(si.is_valid(), dtype=bool)
+        prim = np.array(si.prim_index, dtype=np.int64)
+        img = np.zeros((len(hit), 3))
+        img[hit] = albedo[prim[hit]]
+        out.append((img.reshape(cam.height, cam.width, 3), hit.reshape(cam.height, cam.width)))
+    return out
+
+
+def export_emission(mesh_path: Path) -> dict[int, np.ndarray]:
+    """Area-weighted mean emission per `segment_id` of an export mesh."""
+    pos, tri, cols = layout.read_ply_faces(mesh_path)
+    if "emission_r" not in cols:
+        return {}
+    e = np.stack([cols["emission_r"], cols["emission_g"], cols["emission_b"]], 1).astype(np.float64)
+    area = 0.5 * np.linalg.norm(np.cross(pos[tri[:, 1]] - pos[tri[:, 0]], pos[tri[:, 2]] - pos[tri[:, 0]]), axis=1)
+    out = {}
+    for i in np.unique(cols["segment_id"]):
+        m = cols["segment_id"] == i
+        out[int(i)] = (e[m] * area[m, None]).sum(0) / max(area[m].sum(), 1e-30)
+    return out
+
+
+def novel_cameras(scan_dir: Path) -> list[cams.Camera]:
+    nov = Path(scan_dir) / "novel"
+    cameras = cams.read_conf(nov / "undistorted_camera_parameters" / "novel.conf")
+    for c in cameras:
+        h, w = np.load(nov / "object_id" / f"{c.name}.npy").shape
+        c.width, c.height = w, h
+    return cameras
+
+
+def find_pipeline() -> Path | None:
+    from support import ROOT
+
+    for root in (ROOT, ROOT.parent / "main"):
+        for profile in ("release", "debug"):
+            exe = root / "target" / profile / "pipeline"
+            if exe.is_file():
+                return exe
+    return None
+
+
+def render_novel(run_dir: Path, scan_dir: Path, out_dir: Path, pipeline: Path, spp: int,
+                 materials: Path | None = None) -> None:
+    conf = Path(scan_dir) / "novel" / "undistorted_camera_parameters" / "novel.conf"
+    cmd = [str(pipeline), "render", str(run_dir), "--cameras", str(conf), "--output", str(out_dir), "--spp", str(spp)]
+    if materials is not None:
+        cmd += ["--materials", str(materials)]
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+
+
+def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: Path | None = None,
+          render_spp: int = 64, threads: int = 1, log=print) -> list[dict]:
+    """The metric rows (module docs). `renders`: a directory holding (or receiving) the run's renders of the
+    novel views; rendered with `pipeline` when absent and a binary is found."""
+    from .convert import init_mitsuba
+
+    mi = init_mitsuba(threads)
+    scan_dir, run_dir = Path(scan_dir), Path(run_dir)
+    gt = json.loads((scan_dir / "ground_truth.json").read_text())
+    scene = gt["scene"]
+    truth = {o["id"]: o for o in gt["objects"]}
+    est = {int(o["id"]): o for o in json.loads((run_dir / "materials.json").read_text())["objects"]}
+    threshold = gt["emitter_threshold"]["absolute"]
+    rows = []
+
+    def row(metric, subset, value, count):
+        rows.append({"scene": scene, "metric": metric, "subset": subset, "value": value, "count": count})
+
+    # Per-pixel albedo on held-out views.
+    cameras = novel_cameras(scan_dir)
+    nov = scan_dir / "novel"
+    mesh = run_dir / "export" / "mesh.ply"
+    exported = export_albedo_images(mesh, cameras, mi) if mesh.is_file() else [(None, None)] * len(cameras)
+    t_imgs, e_imgs, masks = [], [], []
+    for cam, (img, hit) in zip(cameras, exported):
+        t = layout.read_exr(nov / "albedo" / f"{cam.name}.exr").astype(np.float64)
+        ids = np.load(nov / "object_id" / f"{cam.name}.npy")
+        fallback = np.zeros_like(t)
+        for i in np.unique(ids[ids > 0]):
+            if int(i) in est:
+                fallback[ids == i] = est[int(i)]["base_color"]
+        e = fallback if img is None else np.where(hit[..., None], img, fallback)
+        m = (ids > 0) & ~np.isin(ids, [i for i, o in truth.items() if o["emitting"]])
+        t_imgs.append(t), e_imgs.append(e), masks.append(m)
+    value, n = albedo_psnr(t_imgs, e_imgs, masks)
+    row("albedo_psnr", "export" if mesh.is_file() else "per-object", value, n)
+    if mesh.is_file():
+        # Share of the scored pixels whose ray hit the export: low means the export is not in the scan frame.
+        covered = sum(int((hit & m).sum()) for (_, hit), m in zip(exported, masks))
+        row("albedo_export_coverage", "pixels", covered / n if n else math.nan, n)
+
+    # Per-object albedo L1 and roughness.
+    seen = [o for o in truth.values() if o["seen"] and not o["emitting"] and o["id"] in est]
+    for kind in (*KINDS, "all"):
+        objs = [o for o in seen if kind == "all" or o["kind"] == kind]
+        l1 = [float(np.mean(np.abs(np.subtract(est[o["id"]]["base_color"], o["base_color"])))) for o in objs]
+        row("albedo_l1", kind, float(np.mean(l1)) if l1 else math.nan, len(l1))
+    glossy = [o for o in seen if o["kind"] in ("glossy", "metal")]
+    err = [abs(est[o["id"]]["roughness"] - o["roughness"]) for o in glossy]
+    row("roughness_abs_error", "glossy+metal", float(np.mean(err)) if err else math.nan, len(err))
+
+    # Emitters.
+    true_set = {i for i, o in truth.items() if o["emitting"]}
+    est_set = {i for i, o in est.items() if i in truth and max(o["emission"]) > threshold}
+    union = true_set | est_set
+    row("emitter_iou", "objects", len(true_set & est_set) / len(union) if union else 1.0, len(union))
+    rel = []
+    for i in sorted(true_set):
+        e_true = np.asarray(truth[i]["emission"])
+        e_est = np.asarray(est[i]["emission"]) if i in est else np.zeros(3)
+        r = float(np.abs(e_est - e_true).sum() / np.abs(e_true).sum())
+        rel.append(r)
+        row("emission_rel_error", f"{truth[i]['label']}{'' if truth[i]['seen'] else ' (unseen)'}", r, 1)
+    row("emission_rel_error", "mean", float(np.mean(rel)) if rel else math.nan, len(rel))
+    if mesh.is_file():
+        # The per-triangle stage may re-solve the lights: the export's area-weighted emission per object.
+        emission = export_emission(mesh)
+        est_set = {i for i, e in emission.items() if i in truth and max(e) > threshold}
+        union = true_set | est_set
+        row("emitter_iou", "export", len(true_set & est_set) / len(union) if union else 1.0, len(union))
+        rel = [float(np.abs(emission.get(i, np.zeros(3)) - truth[i]["emission"]).sum()
+                     / np.abs(truth[i]["emission"]).sum()) for i in sorted(true_set)]
+        row("emission_rel_error", "export mean", float(np.mean(rel)) if rel else math.nan, len(rel))
+
+    # Novel-view re-renders: the run's materials, and the per-object truth as a reference (the best a
+    # per-object fit can reach through our renderer, including both renderers' Monte-Carlo noise).
+    pipeline = pipeline or find_pipeline()
+    tmp = None
+    if renders is None:
+        tmp = tempfile.TemporaryDirectory(prefix="corpus_renders_")
+        renders = Path(tmp.name)
+    renders = Path(renders)
+    for subset, materials in (("run", None), ("truth-materials", scan_dir / "ground_truth_materials.json")):
+        out = renders / subset
+        missing = [c for c in cameras if not (out / f"{c.name}.exr").is_file()]
+        if missing and pipeline is not None:
+            out.mkdir(parents=True, exist_ok=True)
+            try:
+                render_novel(run_dir, scan_dir, out, pipeline, render_spp, materials)
+            except (subprocess.CalledProcessError, OSError) as e:
+                log(f"pipeline render failed: {getattr(e, 'stderr', '') or e}"[-500:])
+        ps, l1s = [], []
+        for c in cameras:
+            f = out / f"{c.name}.exr"
+            if f.is_file():
+                p, l1 = image_scores(layout.read_exr(nov / "undistorted_color_images" / f"{c.name}.exr"),
+                                     layout.read_exr(f))
+                ps.append(p), l1s.append(l1)
+        row("novel_psnr", subset, float(np.mean(ps)) if ps else math.nan, len(ps))
+        row("novel_l1", subset, float(np.mean(l1s)) if l1s else math.nan, len(l1s))
+    if tmp is not None:
+        tmp.cleanup()
+    return rows
+
+
+def write_reports(rows: list[dict], csv_path: Path) -> Path:
+    """Writes the CSV and a markdown table beside it (same stem, `.md`); returns the markdown path."""
+    csv_path = Path(csv_path)
+    csv_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(csv_path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=["scene", "metric", "subset", "value", "count"])
+        w.writeheader()
+        for r in rows:
+            w.writerow({**r, "value": f"{r['value']:.6g}"})
+    md = csv_path.with_suffix(".md")
+    lines = ["| scene | metric | subset | value | count |", "|---|---|---|---:|---:|"]
+    lines += [f"| {r['scene']} | {r['metric']} | {r['subset']} | {r['value']:.4g} | {r['count']} |" for r in rows]
+    md.write_text("\n".join(lines) + "\n")
+    return md

@@ -1,0 +1,263 @@
+"""The realistic corpus (tests/validation/corpus): build the tiny generated room and score it, then check the
+invariants a wrong conversion breaks: PLY segment ids = ground-truth ids, emitters wound toward their
+emitting side, finite non-negative photos, the hidden light in no training photo, areas kept, z up; the
+scorer's perfect and perturbed scores; and the same on Bitterli's Modern Hall when ../shared/data has it."""
+import json
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mitsuba", reason="Mitsuba 3 is not installed in this Python (run scripts/setup for deps/venv)")
+pytest.importorskip("plyfile", reason="plyfile is not installed (deps/venv)")
+
+from corpus import convert, generate, layout, scan, scenes, score  # noqa: E402
+from support import SHARED_DATA  # noqa: E402
+
+AREA_TOLERANCE = 2e-3  # relative: a 64-gon fan keeps 99.84 % of a disk; meshes and rectangles are exact
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    out = tmp_path_factory.mktemp("corpus") / "tiny"
+    xml, up, defaults = scenes.resolve("tiny", out)
+    scan.build(xml, out, "tiny", up=up, seed=3, log=lambda *_: None, **defaults)
+    return out
+
+
+@pytest.fixture(scope="module")
+def modern_hall(tmp_path_factory):
+    xml = SHARED_DATA / "bitterli-staircase2" / "scene.xml"
+    if not xml.is_file():
+        pytest.skip(f"Modern Hall not found at {xml} (../shared/data beside the repository)")
+    out = tmp_path_factory.mktemp("corpus") / "modern-hall"
+    scan.build(xml, out, "modern-hall", up="y", width=24, height=20, spp=2, positions=1, novel_positions=1,
+               seed=1, log=lambda *_: None)
+    return out
+
+
+def truth(d):
+    return json.loads((d / "ground_truth.json").read_text())
+
+
+def check_segment_ids(d, house):
+    _, tri, cols = layout.read_ply_faces(d / "house_segmentations" / f"{house}.ply")
+    gt = truth(d)
+    mat = json.loads((d / "ground_truth_materials.json").read_text())
+    assert mat["format"] == "ipt-materials/1"
+    ids = set(np.unique(cols["segment_id"]).tolist())
+    assert ids == {o["id"] for o in gt["objects"]} == {o["id"] for o in mat["objects"]}
+    assert np.array_equal(cols["segment_id"], cols["material_id"])
+    fsegs = json.loads((d / "house_segmentations" / f"{house}.fsegs.json").read_text())["segIndices"]
+    assert fsegs == cols["segment_id"].tolist()
+    counts = dict(zip(*np.unique(cols["segment_id"], return_counts=True)))
+    assert all(counts[o["id"]] == o["triangles"] for o in mat["objects"])
+
+
+def check_emitter_winding(d, house):
+    """A ray shot at each emitter triangle from 1 cm in front of it (the winding side) sees radiance; from
+    behind it does not (Mitsuba's area lights are one-sided), checked in the source scene."""
+    mi = convert.init_mitsuba(1)
+    gt = truth(d)
+    full, _ = scan.load_scenes(gt["source_xml"], mi)
+    rot = convert.UP_ROTATIONS[gt["up_axis_of_source"]]
+    pos, tri, cols = layout.read_ply_faces(d / "house_segmentations" / f"{house}.ply")
+    emitters = [o for o in gt["objects"] if o["emitting"] and not o["portal"]]
+    assert emitters
+    for o in emitters:
+        t = tri[cols["segment_id"] == o["id"]]
+        p = (pos[t].mean(axis=1)) @ rot  # centroids, source frame
+        n = convert.face_normals(pos, t) @ rot
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        for side, lit in ((1.0, True), (-1.0, False)):
+            o_ = p + side * 0.01 * n
+            si = convert.cast(full, o_, -side * n, mi)
+            emitted = np.array(si.emitter(full).eval(si), dtype=np.float64).T.max(axis=1)
+            emitted = np.where(np.array(si.is_valid(), dtype=bool), emitted, 0.0)
+            if lit:
+                assert np.all(emitted > 0), (o["label"], side)
+            else:
+                assert np.all(emitted == 0), (o["label"], side)
+
+
+def check_photos(d):
+    conf = list((d / "undistorted_camera_parameters").glob("*.conf"))
+    assert len(conf) == 1
+    names = [line.split()[2] for line in conf[0].read_text().splitlines() if line.startswith("scan ")]
+    assert len(names) == 18 * len(truth(d)["tripod_eyes"])
+    for n in names:
+        img = layout.read_exr(d / "undistorted_color_images" / n)
+        assert np.all(np.isfinite(img)) and img.min() >= 0.0, n
+        assert img.max() > 0.0, n
+
+
+def check_areas(d):
+    for o in truth(d)["objects"]:
+        assert abs(o["area"] - o["mitsuba_area"]) <= AREA_TOLERANCE * o["mitsuba_area"], o["label"]
+
+
+def test_tiny_scan_layout_and_truth(tiny):
+    check_segment_ids(tiny, "tiny")
+    check_photos(tiny)
+    check_areas(tiny)
+    gt = truth(tiny)
+    hidden = [o for o in gt["objects"] if o["label"].startswith("uplight")]
+    assert hidden and all(not o["seen"] and o["pixels"] == 0 and o["emitting"] for o in hidden)
+    visible = [o for o in gt["objects"] if o["label"].startswith("light-ceiling")]
+    assert visible and all(o["emitting"] for o in visible)
+    # Two lights of different colours.
+    assert hidden[0]["emission"] != visible[0]["emission"]
+    # z up: the floor's triangles face +z, the ceiling's −z.
+    pos, tri, cols = layout.read_ply_faces(tiny / "house_segmentations" / "tiny.ply")
+    for label, sign in (("floor-0", 1), ("ceiling-0", -1)):
+        oid = next(o["id"] for o in gt["objects"] if o["label"] == label)
+        n = convert.face_normals(pos, tri[cols["segment_id"] == oid])
+        assert np.all(sign * n[:, 2] > 0.99 * np.linalg.norm(n, axis=1))
+    # Held-out views: albedo and ids of the same size, ids known.
+    for name in gt["novel_views"]:
+        ids = np.load(tiny / "novel" / "object_id" / f"{name}.npy")
+        alb = layout.read_exr(tiny / "novel" / "albedo" / f"{name}.exr")
+        assert alb.shape[:2] == ids.shape
+        assert set(np.unique(ids).tolist()) <= {o["id"] for o in gt["objects"]} | {-1, -2}
+        assert np.all((alb >= 0) & (alb <= 1))
+
+
+def test_tiny_emitters_face_their_emitting_side(tiny):
+    check_emitter_winding(tiny, "tiny")
+
+
+def test_build_is_reproducible(tiny, tmp_path):
+    xml, up, defaults = scenes.resolve("tiny", tmp_path)
+    scan.build(xml, tmp_path, "tiny", up=up, seed=3, log=lambda *_: None, **defaults)
+    for rel in ("house_segmentations/tiny.ply", "undistorted_camera_parameters/tiny.conf",
+                "ground_truth_materials.json", "undistorted_color_images/tiny-p00_i1_2.exr"):
+        assert (tmp_path / rel).read_bytes() == (tiny / rel).read_bytes(), rel
+
+
+def fake_run(scan_dir, run_dir, albedo_shift=0.0, emission_scale=1.0, roughness_shift=0.0):
+    """A run directory whose materials are the truth, perturbed; its export is the scan mesh carrying each
+    object's (perturbed) base colour per face."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    mat = json.loads((scan_dir / "ground_truth_materials.json").read_text())
+    for o in mat["objects"]:
+        o["base_color"] = [min(1.0, c + albedo_shift) for c in o["base_color"]]
+        o["emission"] = [e * emission_scale for e in o["emission"]]
+        o["roughness"] = min(1.0, o["roughness"] + roughness_shift)
+    (run_dir / "materials.json").write_text(json.dumps(mat))
+    return mat
+
+
+def rows_by(rows):
+    return {(r["metric"], r["subset"]): r["value"] for r in rows}
+
+
+def test_scorer_perfect_and_perturbed(tiny, tmp_path):
+    fake_run(tiny, tmp_path / "perfect")
+    perfect = rows_by(score.score(tiny, tmp_path / "perfect", renders=tmp_path / "none", pipeline=None,
+                                  log=lambda *_: None))
+    assert perfect[("albedo_l1", "all")] == 0.0
+    assert perfect[("emitter_iou", "objects")] == 1.0
+    assert perfect[("emission_rel_error", "mean")] == 0.0
+    fake_run(tiny, tmp_path / "shifted", albedo_shift=0.1, emission_scale=1.2)
+    shifted = rows_by(score.score(tiny, tmp_path / "shifted", renders=tmp_path / "none", pipeline=None,
+                                  log=lambda *_: None))
+    gt = truth(tiny)
+    # Every seen non-emitting base colour is below 0.9, so +0.1 is not clamped: L1 = 0.1 exactly.
+    assert max(max(o["base_color"]) for o in gt["objects"] if o["seen"] and not o["emitting"]) < 0.9
+    assert shifted[("albedo_l1", "all")] == pytest.approx(0.1, abs=1e-6)
+    assert shifted[("emission_rel_error", "mean")] == pytest.approx(0.2, abs=1e-6)
+    assert shifted[("emitter_iou", "objects")] == 1.0
+    # Pure per-pixel function: truth as estimate is perfect; +0.1 on albedos ≤ 0.9 is MSE 0.01 = 20 dB.
+    rng = np.random.default_rng(0)
+    t = [rng.uniform(0, 0.9, (8, 10, 3)) for _ in range(2)]
+    m = [np.ones((8, 10), bool), rng.random((8, 10)) < 0.5]
+    assert score.albedo_psnr(t, t, m)[0] == math.inf
+    assert score.albedo_psnr(t, [x + 0.1 for x in t], m)[0] == pytest.approx(20.0, abs=1e-9)
+    # Clamping: estimates above 1 count as 1 (FIPT/IRIS convention).
+    assert score.albedo_psnr([np.ones((2, 2, 3))], [np.full((2, 2, 3), 3.0)], [np.ones((2, 2), bool)])[0] == math.inf
+    # Novel-view scores: an image against itself, and against itself halved (exposure from the truth).
+    img = rng.uniform(0, 2, (8, 10, 3))
+    assert score.image_scores(img, img) == (math.inf, 0.0)
+    assert score.image_scores(img, 0.5 * img)[0] < 20.0
+
+
+def test_scorer_reads_an_export_mesh(tiny, tmp_path):
+    """A per-triangle export equal to the per-object truth scores the same per-pixel PSNR as the per-object
+    fallback (the same pixel-centre rays hit the same objects)."""
+    run = tmp_path / "run"
+    mat = fake_run(tiny, run)
+    by_id = {o["id"]: o for o in mat["objects"]}
+    pos, tri, cols = layout.read_ply_faces(tiny / "house_segmentations" / "tiny.ply")
+    from plyfile import PlyData, PlyElement
+
+    v = np.empty(len(pos), dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    v["x"], v["y"], v["z"] = pos.T
+    f = np.empty(len(tri), dtype=[("vertex_indices", "i4", (3,)), ("albedo_r", "f4"), ("albedo_g", "f4"),
+                                  ("albedo_b", "f4"), ("segment_id", "i4")])
+    f["vertex_indices"] = tri
+    colours = np.array([by_id[int(s)]["base_color"] for s in cols["segment_id"]])
+    f["albedo_r"], f["albedo_g"], f["albedo_b"] = colours.T
+    f["segment_id"] = cols["segment_id"]
+    (run / "export").mkdir()
+    PlyData([PlyElement.describe(v, "vertex"), PlyElement.describe(f, "face")]).write(str(run / "export" / "mesh.ply"))
+    with_export = rows_by(score.score(tiny, run, renders=tmp_path / "none", pipeline=None, log=lambda *_: None))
+    shutil.rmtree(run / "export")
+    without = rows_by(score.score(tiny, run, renders=tmp_path / "none", pipeline=None, log=lambda *_: None))
+    assert with_export[("albedo_psnr", "export")] == pytest.approx(without[("albedo_psnr", "per-object")], abs=0.3)
+
+
+def test_scores_are_written_as_csv_and_markdown(tiny, tmp_path):
+    fake_run(tiny, tmp_path / "run")
+    rows = score.score(tiny, tmp_path / "run", renders=tmp_path / "none", pipeline=None, log=lambda *_: None)
+    md = score.write_reports(rows, tmp_path / "out.csv")
+    assert (tmp_path / "out.csv").read_text().startswith("scene,metric,subset,value,count")
+    assert "albedo_psnr" in md.read_text()
+
+
+def test_house_preset_has_the_required_scale():
+    objects, triangles, lights = generate.triangle_count(scenes.SCENES["house"].spec)
+    assert objects >= 150 and triangles >= 500_000 and lights >= 8
+    assert scenes.SCENES["house"].defaults["positions"] >= 10
+
+
+def test_modern_hall(modern_hall):
+    check_segment_ids(modern_hall, "modern-hall")
+    check_areas(modern_hall)
+    check_photos(modern_hall)
+    check_emitter_winding(modern_hall, "modern-hall")
+    gt = truth(modern_hall)
+    assert [d["label"] for d in gt["dropped"]] == ["Glass"]
+    assert sum(o["emitting"] for o in gt["objects"]) == 13
+    assert sum(o["rewound_emitter_triangles"] > 0 for o in gt["objects"]) == 6
+    kinds = {o["label"]: o["kind"] for o in gt["objects"]}
+    assert kinds["Metal"] == "metal" and kinds["Wood_0001"] == "glossy" and kinds["Wallpaper"] == "diffuse"
+    # y-up → z-up: the big floor faces +z on average (area-weighted).
+    pos, tri, cols = layout.read_ply_faces(modern_hall / "house_segmentations" / "modern-hall.ply")
+    oid = next(o["id"] for o in gt["objects"] if o["label"] == "FloorTiles")
+    n = convert.face_normals(pos, tri[cols["segment_id"] == oid]).sum(axis=0)
+    assert n[2] > 0.95 * np.linalg.norm(n)
+
+
+def test_daylight_panes_are_emitters_with_the_measured_sky(tmp_path):
+    """Under a constant sky every ray leaving a pane sees the sky: the measured pane radiance is the sky's
+    (the panes are absent from the photos, so the room is lit through the openings)."""
+    from dataclasses import replace
+
+    sky = (2.0, 2.5, 3.0)
+    spec = replace(scenes.SCENES["room-daylight"].spec, sky="constant", sky_radiance=sky, name="day")
+    xml = generate.write_scene(spec, tmp_path / "source")
+    scan.build(xml, tmp_path, "day", width=24, height=20, spp=4, positions=1, novel_positions=1, seed=2,
+               log=lambda *_: None)
+    gt = truth(tmp_path)
+    panes = [o for o in gt["objects"] if o["portal"]]
+    assert panes and all(o["emitting"] and o["kind"] == "emitter" for o in panes)
+    for o in panes:
+        assert o["emission"] == pytest.approx(sky, rel=1e-4), o["label"]
+    assert gt["emitter_threshold"]["brightest"] == pytest.approx(max(sky), rel=1e-4)
+    check_segment_ids(tmp_path, "day")
+    check_photos(tmp_path)
+    # Windows are seen, and the photos are lit (the panes do not block the sky).
+    assert any(o["seen"] for o in panes)
+    img = layout.read_exr(tmp_path / "undistorted_color_images" / "day-p00_i1_0.exr")
+    assert img.mean() > 0.01
