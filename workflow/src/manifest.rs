@@ -269,7 +269,12 @@ mod tests {
         let changed: BTreeMap<String, String> = [("stage:ingest".to_owned(), "01".to_owned())].into();
         assert!(matches!(back.freshness("cfg", &changed, root), Freshness::Stale(r) if r.contains("stage:ingest")));
         std::fs::write(root.join("s/a.bin"), b"hello!").unwrap();
-        assert!(matches!(back.freshness("cfg", &inputs, root), Freshness::Stale(r) if r.contains("modified")));
+        assert!(matches!(back.freshness("cfg", &inputs, root), Freshness::Stale(r) if r.contains("damaged")));
+        // Same size, one byte changed: the content digest sees it.
+        std::fs::write(root.join("s/a.bin"), b"hellp").unwrap();
+        assert!(
+            matches!(back.freshness("cfg", &inputs, root), Freshness::Stale(r) if r.contains("content digest changed"))
+        );
         std::fs::remove_file(root.join("s/a.bin")).unwrap();
         assert!(matches!(back.freshness("cfg", &inputs, root), Freshness::Stale(r) if r.contains("missing")));
     }
