@@ -18,6 +18,18 @@ from support import SHARED_DATA  # noqa: E402
 AREA_TOLERANCE = 2e-3  # relative: a 64-gon fan keeps 99.84 % of a disk; meshes and rectangles are exact
 
 
+@pytest.fixture(scope="module", autouse=True)
+def restore_drjit_threads():
+    """The corpus renders on one Dr.Jit worker (`convert.init_mitsuba`), a process-wide setting. The Mitsuba
+    tests that run after this module in the same process need the default pool back: with one worker, their
+    LLVM kernels never finish (Mitsuba 3.9.1, seen as a hang of test_mitsuba_baseline)."""
+    import drjit as dr
+
+    threads = dr.thread_count()
+    yield
+    dr.set_thread_count(threads)
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
     out = tmp_path_factory.mktemp("corpus") / "tiny"
