@@ -17,9 +17,6 @@ use tracer::{PixelRef, TracerError};
 
 use crate::streams::key::SECOND_ESTIMATE;
 
-/// Largest change of roughness or specular in one coupled Gauss–Newton step.
-const LOBE_TRUST_REGION: f64 = 0.1;
-
 /// Which unknowns a linearised solve updates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Unknowns {
@@ -226,122 +223,6 @@ pub fn solve_on_columns(
         }
     }
     loss
-}
-
-/// One Gauss–Newton step on emission, base colour and — for the objects with `lobe[k]` — roughness and
-/// specular, all channels in one system (roughness and specular couple them). Same estimator as
-/// [`solve_step`]: two independent Jacobian estimates, IRLS-L1 or L2, relative emission lasso then relaxed,
-/// Marquardt damping of the material unknowns. Returns the mean per-channel L1 residual before the step.
-pub fn coupled_step(
-    ctx: &Ctx<'_>,
-    x: &mut [f64],
-    samples: &[Sample],
-    spp: u32,
-    iteration_key: u64,
-    free_base_color: &[bool],
-    lobe: &[bool],
-    opts: &SolveOptions,
-) -> Result<f64, TracerError> {
-    let k_count = x.len() / layout::PER_OBJECT;
-    let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
-    let params = layout::to_params(x);
-    let r1 = jacobian::channel_rows(ctx, &params, &pixels, spp, iteration_key)?;
-    let r2 = jacobian::channel_rows(ctx, &params, &pixels, spp, iteration_key ^ SECOND_ESTIMATE)?;
-    let m = samples.len();
-    // Unknowns: (object, parameter index in the layout, which entry of the channel row, channel or None for
-    // all channels).
-    let mut vars: Vec<(usize, usize, usize, Option<usize>)> = Vec::new();
-    for k in 0..k_count {
-        for c in 0..3 {
-            vars.push((k, EMISSION + c, 3, Some(c)));
-        }
-    }
-    let n_emission = vars.len();
-    for k in (0..k_count).filter(|&k| free_base_color[k]) {
-        for c in 0..3 {
-            vars.push((k, BASE_COLOR + c, 0, Some(c)));
-        }
-        if lobe[k] {
-            vars.push((k, layout::ROUGHNESS, 1, None));
-            vars.push((k, layout::SPECULAR, 2, None));
-        }
-    }
-    let n = vars.len();
-    // Rows: (pixel j, channel c) at 3j + c.
-    let col = |rows: &[[Vec<[f64; 4]>; 3]], v: &(usize, usize, usize, Option<usize>)| -> Vec<f64> {
-        let (k, _, entry, ch) = *v;
-        let mut out = vec![0.0; 3 * m];
-        for j in 0..m {
-            for c in 0..3 {
-                if ch.is_none_or(|cc| cc == c) {
-                    out[3 * j + c] = rows[j][c][k][entry];
-                }
-            }
-        }
-        out
-    };
-    let cols: Vec<Vec<f64>> = vars.iter().map(|v| col(&r1, v)).collect();
-    let cols2: Vec<Vec<f64>> = vars.iter().map(|v| col(&r2, v)).collect();
-    let mut target: Vec<f64> = samples.iter().flat_map(|s| s.target.to_array().map(f64::from)).collect();
-    let mut target2 = target.clone();
-    let mut loss = 0.0;
-    for r in 0..3 * m {
-        let pred: f64 = (0..n_emission).map(|i| 0.5 * (cols[i][r] + cols2[i][r]) * x[idx(vars[i].0, vars[i].1)]).sum();
-        loss += (target[r] - pred).abs() / (3 * m.max(1)) as f64;
-    }
-    for i in n_emission..n {
-        let x0 = x[idx(vars[i].0, vars[i].1)];
-        for r in 0..3 * m {
-            target[r] += cols[i][r] * x0;
-            target2[r] += cols2[i][r] * x0;
-        }
-    }
-    let mut penalty = vec![0.0; n];
-    let mut prox = vec![0.0; n];
-    let mut anchor = vec![0.0; n];
-    let mut lo = vec![0.0; n];
-    let mut hi = vec![EMISSION_MAX; n];
-    let mut var: Vec<f64> = vars.iter().map(|v| x[idx(v.0, v.1)]).collect();
-    for i in n_emission..n {
-        if vars[i].3.is_none() {
-            // Trust region of the lobe parameters: the GGX lobe is far from linear in roughness, and without
-            // a bound the steps jumped between 0 and 1 on the glossy fixture.
-            lo[i] = (var[i] - LOBE_TRUST_REGION).max(0.0);
-            hi[i] = (var[i] + LOBE_TRUST_REGION).min(1.0);
-        }
-    }
-    for i in 0..n {
-        // Mean over the rows of the variable's own channel(s).
-        let rows_used = if vars[i].3.is_some() { m } else { 3 * m }.max(1) as f64;
-        if i < n_emission {
-            penalty[i] = opts.emission_l1
-                * cols[i].iter().zip(&cols2[i]).map(|(a, b)| 0.5 * (a + b).abs()).sum::<f64>()
-                / rows_used
-                / 3.0;
-        } else {
-            let diag = cols[i].iter().zip(&cols2[i]).map(|(a, b)| (a * b).abs()).sum::<f64>() / (3 * m.max(1)) as f64;
-            prox[i] = opts.damping * diag;
-            anchor[i] = var[i];
-            if vars[i].3.is_some() {
-                hi[i] = 1.0;
-            }
-        }
-    }
-    let problem = Problem {
-        cols: &cols,
-        target: &target,
-        second: Some((&cols2, &target2)),
-        penalty: &penalty,
-        prox: &prox,
-        anchor: &anchor,
-        lo: &lo,
-        hi: &hi,
-    };
-    solve_relaxed_lasso(problem, n_emission, opts, &mut var);
-    for (v, value) in vars.iter().zip(var) {
-        x[idx(v.0, v.1)] = value;
-    }
-    Ok(loss)
 }
 
 /// Relaxed lasso over the first `n_emission` unknowns (the emissions): `problem` is solved with its penalty,
