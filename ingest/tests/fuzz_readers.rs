@@ -8,6 +8,7 @@
 //! time (`libc::clock_gettime`).
 #![allow(unsafe_code)]
 
+mod formats_common;
 mod fuzz_support;
 
 use fuzz_support::{alloc::CountingAlloc, fuzz, replay_regressions};

@@ -40,8 +40,9 @@ pub fn binary_ply(vertices: &[[f32; 3]], faces: &[(Vec<i32>, i32)]) -> Vec<u8> {
     out
 }
 
-/// SplitMix64: a tiny seeded generator so tests are reproducible without extra dependencies.
-#[derive(Debug)]
+/// SplitMix64: a tiny seeded generator so tests are reproducible without extra dependencies (also the
+/// fuzzer's, `fuzz_support::mutate`).
+#[derive(Debug, Clone)]
 pub struct Rng(pub u64);
 
 impl Rng {
@@ -56,6 +57,16 @@ impl Rng {
     /// Uniform in [lo, hi).
     pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in `0..n` (`n > 0`).
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+
+    /// One of `items` (not empty), uniformly.
+    pub fn pick<'a, T>(&mut self, items: &'a [T]) -> &'a T {
+        &items[self.below(items.len())]
     }
 }
 

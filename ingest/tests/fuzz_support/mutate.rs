@@ -4,28 +4,9 @@
 //! Every case is a pure function of (base seed, reader name, case index) and the corpus, so a failing case is
 //! reproduced from its seed alone.
 
-/// SplitMix64: tiny, seeded, reproducible across platforms.
-#[derive(Debug, Clone)]
-pub struct Rng(pub u64);
-
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `0..n` (`n > 0`).
-    pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
-
-    pub fn pick<'a, T>(&mut self, items: &'a [T]) -> &'a T {
-        &items[self.below(items.len())]
-    }
-}
+/// The seeded generator of the `formats_*` tests (SplitMix64), shared so that one generator serves every
+/// ingest test.
+pub use crate::formats_common::Rng;
 
 /// The generator of case `case` of `reader` under `seed`.
 pub fn case_rng(seed: u64, reader: &str, case: u64) -> Rng {
