@@ -7,12 +7,9 @@
 //! covers its `mod.rs`; every other file is named somewhere in the section (`pose.rs`, `embree/ffi.rs`, or
 //! inside a directory by its module name `ffi`).
 
+mod common;
+use common::{rust_files, workspace_root};
 use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
 
 /// Crate sections: (crate directory, section text).
 fn sections(map: &str) -> Vec<(String, String)> {
@@ -28,7 +25,7 @@ fn sections(map: &str) -> Vec<(String, String)> {
             text.push('\n');
         }
     }
-    out.retain(|(name, _)| !name.is_empty() && root().join(name).join("Cargo.toml").is_file());
+    out.retain(|(name, _)| !name.is_empty() && workspace_root().join(name).join("Cargo.toml").is_file());
     out
 }
 
@@ -47,24 +44,13 @@ fn mentioned(section: &str) -> BTreeSet<String> {
     section.split('`').skip(1).step_by(2).map(str::to_owned).collect()
 }
 
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    for e in std::fs::read_dir(dir).unwrap() {
-        let p = e.unwrap().path();
-        if p.is_dir() {
-            rust_files(&p, out);
-        } else if p.extension().is_some_and(|x| x == "rs") {
-            out.push(p);
-        }
-    }
-}
-
 #[test]
 fn code_map_lists_every_module_and_only_existing_paths() {
-    let map = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
+    let map = std::fs::read_to_string(workspace_root().join("ARCHITECTURE.md")).unwrap();
     let sections = sections(&map);
     let mut problems = Vec::new();
     let members: Vec<String> = {
-        let cargo = std::fs::read_to_string(root().join("Cargo.toml")).unwrap();
+        let cargo = std::fs::read_to_string(workspace_root().join("Cargo.toml")).unwrap();
         let line = cargo.lines().find(|l| l.starts_with("members")).unwrap().to_owned();
         line.split('"').skip(1).step_by(2).map(str::to_owned).collect()
     };
@@ -74,12 +60,12 @@ fn code_map_lists_every_module_and_only_existing_paths() {
         }
     }
     for (krate, text) in &sections {
-        let src = root().join(krate).join("src");
+        let src = workspace_root().join(krate).join("src");
         let heads = heads(text);
         for h in &heads {
             // Test, bench and example files are relative to the crate; modules to its src/.
             let base = if ["tests/", "benches/", "examples/"].iter().any(|d| h.starts_with(d)) {
-                root().join(krate)
+                workspace_root().join(krate)
             } else {
                 src.clone()
             };
@@ -90,9 +76,7 @@ fn code_map_lists_every_module_and_only_existing_paths() {
             }
         }
         let words = mentioned(text);
-        let mut files = Vec::new();
-        rust_files(&src, &mut files);
-        for f in files {
+        for f in rust_files(&src) {
             let rel = f.strip_prefix(&src).unwrap().to_string_lossy().replace('\\', "/");
             let name = f.file_name().unwrap().to_string_lossy().into_owned();
             let stem = name.trim_end_matches(".rs").to_owned();

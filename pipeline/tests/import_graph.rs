@@ -4,26 +4,12 @@
 //! or descendant is the module tree itself, not an import, and is left out. The strongly connected
 //! components of the remaining graph must all be single modules: every interface lives below its users.
 
+mod common;
+use common::{rust_files, workspace_root};
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 const CRATES: [&str; 6] = ["ingest", "tracer", "optim", "workflow", "lab", "pipeline"];
-
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    let mut entries: Vec<_> = std::fs::read_dir(dir).unwrap().flatten().map(|e| e.path()).collect();
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            rust_files(&p, out);
-        } else if p.extension().is_some_and(|e| e == "rs") {
-            out.push(p);
-        }
-    }
-}
 
 /// `a/b.rs` and `a/b/mod.rs` → `["a", "b"]`; crate roots → `[]`.
 fn module_of(src: &Path, file: &Path) -> Vec<String> {
@@ -128,9 +114,8 @@ fn is_prefix(a: &[String], b: &[String]) -> bool {
 
 /// Module → the modules it imports, for one crate.
 fn graph(krate: &str) -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
-    let src = workspace().join(krate).join("src");
-    let mut files = Vec::new();
-    rust_files(&src, &mut files);
+    let src = workspace_root().join(krate).join("src");
+    let files = rust_files(&src);
     let modules: BTreeSet<Vec<String>> = files.iter().map(|f| module_of(&src, f)).collect();
     let resolve = |path: &[String]| -> Vec<String> {
         let mut p = path.to_vec();

@@ -1,8 +1,8 @@
 //! Helpers shared by the integration tests: running the `pipeline` binary, copying scans, loading a bundled
-//! synthetic scene with its photos. Each test crate uses a subset, so unused items are allowed here.
+//! synthetic scene with its photos, walking the workspace's sources. Each test crate uses a subset, so unused items are allowed here.
 #![allow(dead_code)]
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// Runs the built `pipeline` binary (without RUST_LOG, so stderr holds only its own lines): exit code and stderr.
@@ -22,6 +22,26 @@ pub fn decisions(stderr: &str, what: &str) -> Vec<String> {
         .collect()
 }
 
+/// The workspace root (the directory above this crate).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Every `.rs` file under `dir`, recursively, in sorted order.
+pub fn rust_files(dir: &Path) -> Vec<PathBuf> {
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir).unwrap().flatten().map(|e| e.path()).collect();
+    entries.sort();
+    let mut out = Vec::new();
+    for p in entries {
+        if p.is_dir() {
+            out.extend(rust_files(&p));
+        } else if p.extension().is_some_and(|e| e == "rs") {
+            out.push(p);
+        }
+    }
+    out
+}
+
 /// Copies directory `from` (recursively) to `to`.
 pub fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
@@ -38,7 +58,7 @@ pub fn copy_dir(from: &Path, to: &Path) {
 /// The bundled scene `data-fixtures/scenes/<name>.toml` with its photos rendered in memory at `spp` paths per
 /// pixel (instead of the description's own count).
 pub fn synth_scene(name: &str, spp: u32) -> (lab::synth::BuiltScene, Vec<ingest::photo::LinearImage>) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../data-fixtures/scenes/{name}.toml"));
+    let path = workspace_root().join(format!("data-fixtures/scenes/{name}.toml"));
     let mut desc = lab::synth::load_desc(&path).unwrap();
     desc.spp = spp;
     let built = lab::synth::build(desc, &path).unwrap();
