@@ -28,10 +28,9 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let signals = terminal::Signals::install();
-    match execute(cli, &signals) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) if signals.received().is_some() => {
-            let (name, code) = signals.received().unwrap_or(("a signal", 130));
+    match (execute(cli, &signals), signals.received()) {
+        (Ok(()), _) => ExitCode::SUCCESS,
+        (Err(e), Some((name, code))) => {
             eprintln!(
                 "interrupted by {name}: finished stages and the last checkpoint are kept; run the same command \
                  again to resume ({})",
@@ -39,7 +38,7 @@ fn main() -> ExitCode {
             );
             ExitCode::from(code)
         }
-        Err(e) => {
+        (Err(e), None) => {
             let code = if e.chain().any(is_bad_config) { 2 } else { 1 };
             // Our error types print their causes in their own message, so the top level is the whole story.
             eprintln!("error: {}", one_line(&e.to_string()));

@@ -258,7 +258,7 @@ fn measure(p: Point, opts: &ScaleOptions, work: &Path) -> Result<Measured, Bench
         .map_err(|e| BenchError::Io { path: out.clone(), message: e.to_string() })?;
     let ids: Vec<i64> = built.desc.objects.iter().map(|o| i64::from(o.id)).collect();
     let params = materials
-        .params_for(&ids, &out.join("materials.json"))
+        .params_for(&ids, &out.join("object").join("materials.json"))
         .map_err(|e| BenchError::Io { path: out.clone(), message: e.to_string() })?;
     let acc = super::metrics::accuracy(&built, &params);
     let triangles = built.mesh.triangles.len();
