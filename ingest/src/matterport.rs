@@ -226,6 +226,19 @@ pub struct ConfScan {
     pub cam_to_world: glam::DMat4,
 }
 
+/// The physical camera of a Matterport colour image from its file stem `<house>_i<camera>_<yaw>` (the rig
+/// has three cameras, 0 to 2, each with its own lens). `None` when the stem does not follow that pattern.
+#[must_use]
+pub fn physical_camera(stem: &str) -> Option<u32> {
+    let (rest, yaw) = stem.rsplit_once('_')?;
+    let (_, camera) = rest.rsplit_once("_i")?;
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    if !digits(yaw) || !digits(camera) {
+        return None;
+    }
+    camera.parse().ok()
+}
+
 /// A Matterport `.conf` as read: its `scan` entries in order and the `n_images` it declares.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Conf {

@@ -390,3 +390,15 @@ fn ascii_house_ply_loads_the_same() {
     assert_eq!(ascii.objects, bin.objects);
     assert_eq!(ascii.face_object, bin.face_object);
 }
+
+#[test]
+fn physical_camera_from_colour_file_stem() {
+    use ingest::matterport::physical_camera;
+    assert_eq!(physical_camera("17DRP5sb8fy_i0_3"), Some(0));
+    assert_eq!(physical_camera("house_a_i2_17"), Some(2));
+    // The index must be digits right after the last `_i`, followed by a numeric yaw.
+    assert_eq!(physical_camera("house_i1_x"), None);
+    assert_eq!(physical_camera("house_ix_1"), None);
+    assert_eq!(physical_camera("photo_0001"), None);
+    assert_eq!(physical_camera("demo"), None);
+}

@@ -47,6 +47,9 @@ pub mod draw {
     /// Model selection: whether a training pixel chooses its object's lobe or joins the lobe test (keyed by the
     /// pixel).
     pub const PROFILE: u64 = 4;
+    /// Photometric calibration (the `preprocess` stage): the surface points whose photos are compared (keyed by
+    /// the point's index and the coordinate drawn).
+    pub const CALIBRATION_POINTS: u64 = 5;
     /// Per-triangle fit: the pixels of a light solve (keyed by its [`super::key::triangle`] key).
     pub const TRIANGLE_EMISSION_PIXELS: u64 = 0x7265;
     /// Per-triangle fit: the pixels of an Adam batch (keyed by its [`super::key::triangle`] key).

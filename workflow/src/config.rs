@@ -104,6 +104,68 @@ pub struct ImagesConfig {
     /// Keep every n-th view (after `cameras`); 1 = all.
     #[serde(default = "one")]
     pub every: u32,
+    /// How display-referred (8/16-bit) photos become linear: the sRGB curve, or a response estimated from the
+    /// photos themselves (their overlap under different exposures). Linear (EXR/HDR) photos ignore it.
+    #[serde(default)]
+    pub response: ResponseChoice,
+    /// One exposure for every photo, or one gain per photo estimated from the photos' overlap.
+    #[serde(default)]
+    pub exposure: PerPhoto,
+    /// One white balance for every photo, or per-photo channel gains estimated from the photos' overlap.
+    #[serde(default)]
+    pub white_balance: PerPhoto,
+    /// No vignetting, or a radial falloff per physical camera estimated from the photos' overlap.
+    #[serde(default)]
+    pub vignetting: VignettingChoice,
+    /// Surface points sampled (area-uniformly) to compare the photos that see them, when anything above is
+    /// estimated: a statistical budget, independent of the photos' number and resolution.
+    #[serde(default = "default_calibration_points")]
+    pub calibration_points: u32,
+}
+
+/// `images.response`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ResponseChoice {
+    #[default]
+    Srgb,
+    Estimate,
+}
+
+/// `images.exposure` and `images.white_balance`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PerPhoto {
+    #[default]
+    Fixed,
+    PerPhoto,
+}
+
+/// `images.vignetting`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VignettingChoice {
+    #[default]
+    None,
+    Estimate,
+}
+
+/// 20 000 points: each gain is a robust mean over the points its photo shares with others, so a photo that
+/// sees a tenth of the scene averages ~2000 comparisons (docs/photo/self-calibration.md).
+fn default_calibration_points() -> u32 {
+    20_000
+}
+
+impl ImagesConfig {
+    /// Whether any photometric quantity is estimated (the preprocess stage then samples the photos' overlap
+    /// before preparing them).
+    #[must_use]
+    pub fn calibrates(&self) -> bool {
+        self.response == ResponseChoice::Estimate
+            || self.exposure == PerPhoto::PerPhoto
+            || self.white_balance == PerPhoto::PerPhoto
+            || self.vignetting == VignettingChoice::Estimate
+    }
 }
 
 fn one() -> u32 {
@@ -112,7 +174,16 @@ fn one() -> u32 {
 
 impl Default for ImagesConfig {
     fn default() -> Self {
-        Self { downscale: 1, cameras: Vec::new(), every: 1 }
+        Self {
+            downscale: 1,
+            cameras: Vec::new(),
+            every: 1,
+            response: ResponseChoice::default(),
+            exposure: PerPhoto::default(),
+            white_balance: PerPhoto::default(),
+            vignetting: VignettingChoice::default(),
+            calibration_points: default_calibration_points(),
+        }
     }
 }
 

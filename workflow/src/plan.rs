@@ -192,6 +192,7 @@ fn validate(c: &Config) -> Result<(), Invalid> {
     let i = &c.images;
     at_least_one("images.downscale", i.downscale)?;
     at_least_one("images.every", i.every)?;
+    at_least_one("images.calibration_points", i.calibration_points)?;
     for name in &i.cameras {
         rule(!name.trim().is_empty(), "images.cameras", "a list of view names (non-empty)", format!("{name:?}"))?;
     }

@@ -2,7 +2,8 @@
 //!
 //! In `output.path/preprocess/`: `<view>.exr` + `<view>.json` per view (ingest's photo cache: R, G, B, mask
 //! and the prepared pinhole camera) and `views.json` = `{"format": "ipt-views/1", "views": [names in order]}`,
-//! the order every later stage uses for view indices.
+//! the order every later stage uses for view indices; when the photos were calibrated, `calibration.json`
+//! ([`CalibrationFile`]).
 
 use std::path::Path;
 
@@ -10,7 +11,153 @@ use ingest::photo::LinearImage;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use ingest::photo::calibrate::{Calibration, CalibrationOptions, ResponseMode};
+
 use crate::stage_contract::StageError;
+
+/// The photometric calibration's file name.
+pub const CALIBRATION_FILE: &str = "calibration.json";
+/// Format tag of `calibration.json`.
+pub const CALIBRATION_FORMAT: &str = "ipt-calibration/1";
+
+/// `calibration.json`: what the photos' overlap said about each photo and camera.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationFile {
+    pub format: String,
+    /// `"linear"` (linear photos), `"srgb"` (display photos, sRGB curve) or `"estimate"` (response estimated).
+    pub response_mode: String,
+    pub exposure: bool,
+    pub white_balance: bool,
+    pub vignetting: bool,
+    /// Surface points sampled, observations of them in the photos, and observations the robust solve kept.
+    pub points: usize,
+    pub observations: usize,
+    pub used_observations: usize,
+    /// RMS of the kept observations' log residuals.
+    pub residual_rms: f64,
+    pub views: Vec<CalibratedView>,
+    pub cameras: Vec<CameraVignetting>,
+    /// The estimated response, 256 RGB entries (code → relative exposure), each channel scaled to 1 at code
+    /// 255; `None` unless estimated.
+    pub response: Option<Vec<[f32; 3]>>,
+}
+
+/// One view's estimate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibratedView {
+    pub name: String,
+    pub camera: u32,
+    /// RGB gain (exposure × white balance; geometric mean 1 over the kept views); `None` = left out.
+    pub gain: Option<[f64; 3]>,
+    pub left_out: Option<String>,
+}
+
+/// One physical camera's vignetting: its coefficients and v(r) at r = 0, 0.1, …, 1 (r the distance from the
+/// principal point over the corner's).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraVignetting {
+    pub camera: u32,
+    pub beta: [f64; 3],
+    pub corner: f64,
+    pub profile: Vec<f64>,
+}
+
+impl CalibrationFile {
+    /// The record of a calibration of the views `names` (camera group of each in `groups`).
+    #[must_use]
+    pub fn new(
+        names: &[String],
+        groups: &[u32],
+        opts: &CalibrationOptions,
+        points: usize,
+        observations: usize,
+        cal: &Calibration,
+    ) -> Self {
+        let why = |p: usize| cal.unconstrained.iter().find(|(i, _)| *i as usize == p).map(|(_, w)| w.clone());
+        let views = names
+            .iter()
+            .enumerate()
+            .map(|(p, name)| CalibratedView {
+                name: name.clone(),
+                camera: groups[p],
+                gain: cal.gains.get(p).copied().flatten(),
+                left_out: why(p),
+            })
+            .collect();
+        let cameras = cal
+            .vignetting
+            .iter()
+            .enumerate()
+            .map(|(g, v)| CameraVignetting {
+                camera: g as u32,
+                beta: v.beta,
+                corner: v.factor(1.0),
+                profile: (0..=10).map(|k| v.factor((f64::from(k) / 10.0).powi(2))).collect(),
+            })
+            .collect();
+        let response = cal.response.as_ref().map(|r| {
+            let white = r.values()[r.values().len() - 1];
+            r.values().iter().map(|v| [0, 1, 2].map(|c| v[c] / white[c])).collect()
+        });
+        Self {
+            format: CALIBRATION_FORMAT.into(),
+            response_mode: match opts.response {
+                ResponseMode::Linear => "linear",
+                ResponseMode::Srgb => "srgb",
+                ResponseMode::Estimate => "estimate",
+            }
+            .into(),
+            exposure: opts.exposure,
+            white_balance: opts.white_balance,
+            vignetting: opts.vignetting,
+            points,
+            observations,
+            used_observations: cal.used_observations,
+            residual_rms: cal.residual_rms,
+            views,
+            cameras,
+            response,
+        }
+    }
+
+    /// One line for the run log: what was estimated and its range.
+    #[must_use]
+    pub fn summary(&self) -> String {
+        let gains: Vec<f64> = self.views.iter().filter_map(|v| v.gain).flat_map(|g| g.into_iter()).collect();
+        let (lo, hi) = gains.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &g| (lo.min(g), hi.max(g)));
+        let kept = self.views.iter().filter(|v| v.gain.is_some()).count();
+        let corners: Vec<String> = self.cameras.iter().map(|c| format!("{:.3}", c.corner)).collect();
+        format!(
+            "calibrated {kept} of {} views from {} of {} observations of {} points (log residual rms {:.4}): gains \
+             {lo:.3}–{hi:.3}, vignetting at the corner {}, response {}",
+            self.views.len(),
+            self.used_observations,
+            self.observations,
+            self.points,
+            self.residual_rms,
+            if corners.is_empty() { "none".to_owned() } else { corners.join(" / ") },
+            self.response_mode
+        )
+    }
+
+    /// Reads `run_dir/preprocess/calibration.json`; `None` when the run did not calibrate.
+    pub fn read(run_dir: &Path) -> Result<Option<Self>, StageError> {
+        let path = run_dir.join("preprocess").join(CALIBRATION_FILE);
+        if !path.exists() {
+            return Ok(None);
+        }
+        let text = std::fs::read_to_string(&path).map_err(|source| StageError::Io { path: path.clone(), source })?;
+        let file: Self = serde_json::from_str(&text)
+            .map_err(|e| StageError::Artefact { path: path.clone(), message: e.to_string() })?;
+        if file.format != CALIBRATION_FORMAT {
+            return Err(StageError::Artefact { path, message: format!("format is not `{CALIBRATION_FORMAT}`") });
+        }
+        Ok(Some(file))
+    }
+}
 
 /// The view list's file name.
 pub const VIEWS_FILE: &str = "views.json";

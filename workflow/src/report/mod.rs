@@ -1,7 +1,10 @@
 //! `report.html`: one self-contained page (no external files or scripts): input photos beside re-renders and
 //! error maps (inline base64 PNG), loss curves (inline SVG), and the per-object table with colour swatches.
 //! The functions here are pure (data in, text out); the export stage gathers the data. Image encoding (PNG,
-//! base64) is [`crate::display`]'s, the sRGB curve `ingest::srgb`'s, the chart [`crate::svg`]'s.
+//! base64) is [`crate::display`]'s, the sRGB curve `ingest::srgb`'s, the chart [`crate::svg`]'s; the
+//! photometric calibration's section is [`calibration`]'s.
+
+pub mod calibration;
 
 use std::fmt::Write;
 
@@ -47,6 +50,8 @@ pub struct ReportData {
     pub triangle: Option<TriangleSection>,
     /// The object fit's path-sample counts, when its result recorded them.
     pub samples: Option<SampleCounts>,
+    /// The preprocess stage's photometric calibration, when it ran.
+    pub calibration: Option<crate::artefacts::preprocess::CalibrationFile>,
 }
 
 /// Path samples a fit traced and, of them, the ones the tracer discarded as non-finite.
@@ -173,6 +178,9 @@ pub fn html(data: &ReportData) -> String {
     }
     s.push_str("</table>\n");
 
+    if let Some(c) = &data.calibration {
+        s.push_str(&calibration::section(c));
+    }
     if let Some(t) = &data.triangle {
         s.push_str(
             "<h2>Per-triangle stage</h2>\n<p>Triangles per object before (scan mesh) and after adaptive \
@@ -263,6 +271,7 @@ mod tests {
                 atlas_png: Some(png_srgb(&RgbImage { width: 2, height: 1, rgb: vec![0.5; 6] }, 1.0)),
             }),
             samples: Some(SampleCounts { traced_paths: 2_000_000, discarded: 3 }),
+            calibration: None,
         };
         let page = html(&data);
         assert!(!page.contains("<script>"));

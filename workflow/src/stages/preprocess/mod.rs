@@ -1,9 +1,18 @@
 //! The `preprocess` stage: turns each selected view's photo into linear radiance with a validity mask
 //! (undistorted, optionally downscaled; `ingest::photo::prepare_view`) and caches it.
 //!
-//! Artefacts in `output.path/preprocess/` ([`crate::artefacts::preprocess`] reads them back): `<view>.exr` + `<view>.json` per view (ingest's photo cache:
-//! R, G, B, mask and the prepared pinhole camera) and `views.json` = `{"format": "ipt-views/1",
-//! "views": [names in order]}`, the order every later stage uses for view indices.
+//! When `[images]` asks for any photometric estimate (per-photo exposure or white balance, vignetting, an
+//! estimated response), the photos' overlap calibrates them first ([`calibration`]) and each photo is then
+//! linearised with the estimated response and divided by its gains and its camera's vignetting; photos whose
+//! gain the overlap cannot constrain are reported and left out.
+//!
+//! Artefacts in `output.path/preprocess/` ([`crate::artefacts::preprocess`] reads them back): `<view>.exr` +
+//! `<view>.json` per view (ingest's photo cache: R, G, B, mask and the prepared pinhole camera), `views.json` =
+//! `{"format": "ipt-views/1", "views": [names in order]}`, the order every later stage uses for view indices,
+//! and, when calibrated, `calibration.json` (`ipt-calibration/1`: per-view gains, vignetting per camera,
+//! the response beside sRGB).
+
+pub mod calibration;
 
 use std::path::{Path, PathBuf};
 
@@ -12,7 +21,7 @@ use ingest::photo::PhotoOptions;
 use rayon::prelude::*;
 
 use crate::artefacts::ingest::Ingested;
-use crate::artefacts::preprocess::{VIEWS_FILE, VIEWS_FORMAT, ViewList};
+use crate::artefacts::preprocess::{CALIBRATION_FILE, CalibrationFile, VIEWS_FILE, VIEWS_FORMAT, ViewList};
 use crate::atomic_file::write_json_atomic;
 use crate::config::ImagesConfig;
 use crate::stage_contract::{StageContext, StageError};
@@ -37,15 +46,32 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     if chosen.is_empty() {
         return Err(StageError::Artefact { path: ctx.plan.config_path.clone(), message: "no view selected".into() });
     }
-    let opts = PhotoOptions { downscale: ctx.plan.images.downscale, ..PhotoOptions::default() };
+    let base = PhotoOptions { downscale: ctx.plan.images.downscale, ..PhotoOptions::default() };
+    let mut outputs_extra = Vec::new();
+    let (chosen, per_view): (Vec<&View>, Vec<PhotoOptions>) = if ctx.plan.images.calibrates() {
+        let (kept, file) = calibrate(ctx, &scene, &chosen, &base)?;
+        write_json_atomic(&ctx.dir.join(CALIBRATION_FILE), &file)?;
+        outputs_extra.push(PathBuf::from("preprocess").join(CALIBRATION_FILE));
+        kept.into_iter().unzip()
+    } else {
+        let n = chosen.len();
+        (chosen, vec![base; n])
+    };
+    if chosen.is_empty() {
+        return Err(StageError::Artefact {
+            path: ctx.plan.config_path.clone(),
+            message: "no view is left after the photometric calibration".into(),
+        });
+    }
     let bar = ctx.progress("preparing photos", chosen.len() as u64);
     let written: Vec<(Vec<PathBuf>, usize)> = chosen
         .par_iter()
-        .map(|v| {
+        .zip(&per_view)
+        .map(|(v, opts)| {
             if bar.stop_requested() {
                 return Err(StageError::Interrupted);
             }
-            let (camera, img, report) = ingest::photo::prepare_view_counted(&v.image_path, &v.camera, &opts)?;
+            let (camera, img, report) = ingest::photo::prepare_view_counted(&v.image_path, &v.camera, opts)?;
             ingest::photo::write_cached(&ctx.dir, &v.name, &camera, &img)?;
             bar.inc(1);
             let (exr, json) = ingest::photo::cache::cached_paths(Path::new("preprocess"), &v.name);
@@ -62,7 +88,51 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     }
     let mut outputs: Vec<PathBuf> = written.into_iter().flat_map(|(files, _)| files).collect();
     outputs.push(PathBuf::from("preprocess").join(VIEWS_FILE));
+    outputs.extend(outputs_extra);
     Ok(outputs)
+}
+
+/// The photometric calibration: observes the chosen views' overlap, solves, reports, and returns the views
+/// kept with the options that prepare each, and the `calibration.json` record.
+#[allow(clippy::type_complexity)]
+fn calibrate<'a>(
+    ctx: &StageContext<'_>,
+    scene: &Ingested,
+    chosen: &[&'a View],
+    base: &PhotoOptions,
+) -> Result<(Vec<(&'a View, PhotoOptions)>, CalibrationFile), StageError> {
+    let cfg = &ctx.plan.images;
+    let seed = ctx.plan.object.seed;
+    let overlap = {
+        let bar = ctx.progress("comparing overlapping photos", chosen.len() as u64);
+        calibration::observe_overlap(scene, chosen, cfg, seed, bar.as_ref())?
+    };
+    let groups = calibration::camera_groups(chosen);
+    let opts = calibration::options(cfg, overlap.mode, seed);
+    let cal = calibration::solve(&overlap, &groups, &opts)
+        .map_err(|message| StageError::Artefact { path: ctx.plan.config_path.clone(), message })?;
+    let names: Vec<String> = chosen.iter().map(|v| v.name.clone()).collect();
+    let file = CalibrationFile::new(&names, &groups, &opts, overlap.points, overlap.observations.len(), &cal);
+    ctx.note(&file.summary());
+    for (p, why) in &cal.unconstrained {
+        ctx.note(&format!("view {} left out: {why}", names[*p as usize]));
+    }
+    let kept = chosen
+        .iter()
+        .zip(&groups)
+        .enumerate()
+        .filter_map(|(p, (v, &g))| {
+            let gain = cal.gains.get(p).copied().flatten()?;
+            let opts = PhotoOptions {
+                response: cal.response.clone(),
+                gain: Some(gain.map(|x| x as f32)),
+                vignetting: cal.vignetting.get(g as usize).cloned(),
+                ..base.clone()
+            };
+            Some((*v, opts))
+        })
+        .collect();
+    Ok((kept, file))
 }
 
 #[cfg(test)]
@@ -91,7 +161,7 @@ mod tests {
         };
         assert_eq!(names(&ImagesConfig::default()), ["a", "b", "c", "d", "e"]);
         assert_eq!(names(&ImagesConfig { every: 2, ..ImagesConfig::default() }), ["a", "c", "e"]);
-        let cfg = ImagesConfig { cameras: vec!["e".into(), "b".into(), "d".into()], every: 2, downscale: 1 };
+        let cfg = ImagesConfig { cameras: vec!["e".into(), "b".into(), "d".into()], every: 2, ..ImagesConfig::default() };
         assert_eq!(names(&cfg), ["b", "e"]);
         let bad = ImagesConfig { cameras: vec!["zz".into()], ..ImagesConfig::default() };
         assert!(select_views(&views, &bad).unwrap_err().contains("`zz`"));

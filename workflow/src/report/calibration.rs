@@ -1,0 +1,132 @@
+//! The report's "Photometric calibration" section: each photo's estimated exposure and white balance, the
+//! recovered response beside the sRGB curve, and each camera's vignetting profile, from the preprocess stage's
+//! `calibration.json` ([`CalibrationFile`]).
+
+use std::fmt::Write;
+
+use crate::artefacts::preprocess::CalibrationFile;
+use crate::svg::{Curve, escape, line_chart};
+
+/// The section's HTML.
+#[must_use]
+pub fn section(c: &CalibrationFile) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "<h2>Photometric calibration</h2>\n<p>{}</p>", escape(&c.summary()));
+    let _ = writeln!(
+        s,
+        "<p>Gains divide each photo's linear values (exposure × white balance; geometric mean 1 over the kept \
+         photos, since a common factor cannot be told from the lights' emission). Exposure {}, white balance {}, \
+         vignetting {}, response {}.</p>",
+        per_photo(c.exposure),
+        per_photo(c.white_balance),
+        if c.vignetting { "estimated per camera" } else { "none" },
+        escape(&c.response_mode)
+    );
+    let _ = writeln!(s, "<table><tr><th>view</th><th>camera</th><th>gain R</th><th>gain G</th><th>gain B</th></tr>");
+    for v in &c.views {
+        match (&v.gain, &v.left_out) {
+            (Some(g), _) => {
+                let _ = writeln!(
+                    s,
+                    "<tr><td class=\"l\">{}</td><td>{}</td><td>{:.4}</td><td>{:.4}</td><td>{:.4}</td></tr>",
+                    escape(&v.name),
+                    v.camera,
+                    g[0],
+                    g[1],
+                    g[2]
+                );
+            }
+            (None, why) => {
+                let _ = writeln!(
+                    s,
+                    "<tr><td class=\"l\">{}</td><td>{}</td><td class=\"l\" colspan=\"3\">left out: {}</td></tr>",
+                    escape(&v.name),
+                    v.camera,
+                    escape(why.as_deref().unwrap_or("unconstrained"))
+                );
+            }
+        }
+    }
+    let _ = writeln!(s, "</table>");
+    if let Some(r) = &c.response {
+        let n = (r.len().max(2) - 1) as f64;
+        let channel = |k: usize| -> Vec<(f64, f64)> {
+            r.iter().enumerate().skip(1).map(|(z, v)| (z as f64 / n, f64::from(v[k]))).collect()
+        };
+        let srgb: Vec<(f64, f64)> =
+            (1..r.len()).map(|z| (z as f64 / n, f64::from(ingest::srgb::decode(z as f32 / n as f32)))).collect();
+        let (red, green, blue) = (channel(0), channel(1), channel(2));
+        let curves = [
+            Curve { name: "estimated R", points: &red },
+            Curve { name: "estimated G", points: &green },
+            Curve { name: "estimated B", points: &blue },
+            Curve { name: "sRGB", points: &srgb },
+        ];
+        let _ = writeln!(
+            s,
+            "<figure><figcaption>Inverse response: code value → relative exposure (1 at code 255), log scale\
+             </figcaption>{}</figure>",
+            line_chart(&curves, 560, 260, "code / max", "exposure")
+        );
+    }
+    if c.vignetting && !c.cameras.is_empty() {
+        let profiles: Vec<(String, Vec<(f64, f64)>)> = c
+            .cameras
+            .iter()
+            .map(|cam| {
+                let n = (cam.profile.len().max(2) - 1) as f64;
+                (format!("camera {}", cam.camera), cam.profile.iter().enumerate().map(|(k, &v)| (k as f64 / n, v)).collect())
+            })
+            .collect();
+        let curves: Vec<Curve<'_>> = profiles.iter().map(|(n, p)| Curve { name: n, points: p }).collect();
+        let _ = writeln!(
+            s,
+            "<figure><figcaption>Vignetting: relative brightness against distance from the principal point (1 = \
+             image corner), log scale</figcaption>{}</figure>",
+            line_chart(&curves, 560, 220, "radius / corner radius", "falloff")
+        );
+    }
+    s
+}
+
+fn per_photo(on: bool) -> &'static str {
+    if on { "per photo" } else { "fixed" }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::artefacts::preprocess::{CALIBRATION_FORMAT, CalibratedView, CameraVignetting};
+
+    fn file(response: bool, vignetting: bool) -> CalibrationFile {
+        CalibrationFile {
+            format: CALIBRATION_FORMAT.into(),
+            response_mode: if response { "estimate" } else { "linear" }.into(),
+            exposure: true,
+            white_balance: false,
+            vignetting,
+            points: 100,
+            observations: 250,
+            used_observations: 240,
+            residual_rms: 0.01,
+            views: vec![
+                CalibratedView { name: "a<b".into(), camera: 0, gain: Some([0.5, 0.5, 0.5]), left_out: None },
+                CalibratedView { name: "c".into(), camera: 1, gain: None, left_out: Some("all clipped".into()) },
+            ],
+            cameras: vec![CameraVignetting { camera: 0, beta: [-0.5, 0.0, 0.0], corner: 0.61, profile: vec![1.0, 0.8, 0.61] }],
+            response: response.then(|| (0..256).map(|z| [(z as f32 / 255.0).powf(2.0); 3]).collect()),
+        }
+    }
+
+    #[test]
+    fn section_lists_every_view_and_shows_only_what_was_estimated() {
+        let s = section(&file(true, true));
+        assert!(s.contains("a&lt;b") && s.contains("0.5000"), "gains table escapes names: {s}");
+        assert!(s.contains("left out: all clipped"));
+        assert!(s.contains("Inverse response") && s.contains("sRGB"));
+        assert!(s.contains("Vignetting"));
+        let plain = section(&file(false, false));
+        assert!(!plain.contains("Inverse response") && !plain.contains("Vignetting:"));
+        assert!(plain.contains("exposure per photo") || plain.contains("Exposure per photo"));
+    }
+}
