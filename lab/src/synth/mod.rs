@@ -68,7 +68,7 @@ pub fn load_desc(path: &Path) -> Result<SceneDesc, SynthError> {
     let bad = |message: String| SynthError::Desc { path: path.to_path_buf(), message };
     let desc: SceneDesc = toml::from_str(&text).map_err(|e| {
         // toml's own Display quotes the source over several lines; the error stays one line: line + message.
-        let line = e.span().map(|s| text[..s.start.min(text.len())].lines().count().max(1));
+        let line = e.span().and_then(|s| text.get(..s.start)).map(|before| before.matches('\n').count() + 1);
         let message = e.message().split_whitespace().collect::<Vec<_>>().join(" ");
         bad(line.map_or(message.clone(), |l| format!("line {l}: {message}")))
     })?;
