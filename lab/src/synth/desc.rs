@@ -30,6 +30,13 @@
 //! eye = [1, 1, 1.5]
 //! target = [3, 2, 1]
 //! up = [0, 0, 1]
+//!
+//! [camera_pipeline]          # optional: photos written as consumer-camera JPEGs (see camera_pipeline.rs)
+//! exposure = [0.5, 2.0]       # per-photo exposure gain, log-uniform in this range
+//! white_balance = 0.12        # per-photo, per-channel factor uniform in [1 − x, 1 + x]
+//! vignetting_corner = [0.6, 0.62, 0.58]   # one per physical camera: photo k is taken by camera k % n
+//! tone_curve = "filmic"       # display curve applied after gain and vignetting
+//! jpeg_quality = 90
 //! ```
 
 use glam::Vec3;
@@ -51,6 +58,35 @@ pub struct SceneDesc {
     pub emission_profile: tracer::EmissionProfile,
     pub objects: Vec<ObjectSpec>,
     pub cameras: Vec<CameraSpec>,
+    /// When present, every photo goes through a consumer camera pipeline and is written as JPEG only.
+    #[serde(default)]
+    pub camera_pipeline: Option<CameraPipelineSpec>,
+}
+
+/// `[camera_pipeline]`: how each rendered linear photo becomes an 8-bit JPEG, as a consumer camera makes it.
+/// The random draws are keyed by the description's `seed` and the photo index.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraPipelineSpec {
+    /// `[lo, hi]`, 0 < lo ≤ hi: the range of the per-photo exposure gain, drawn log-uniformly (auto exposure).
+    pub exposure: [f64; 2],
+    /// x ∈ [0, 1): each photo's per-channel white-balance factor is drawn uniformly in [1 − x, 1 + x].
+    pub white_balance: f64,
+    /// One entry per physical camera, each in (0, 1): the vignetting factor at the image corner (1 at the
+    /// principal point). Photo k is taken by camera `k % vignetting_corner.len()`.
+    pub vignetting_corner: Vec<f64>,
+    /// The display curve applied to the gained, vignetted linear value (`"filmic"`).
+    pub tone_curve: ToneCurveName,
+    /// Quality of the `image` crate's JPEG encoder, 1–100.
+    pub jpeg_quality: u8,
+}
+
+/// The tone curves [`CameraPipelineSpec::tone_curve`] names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ToneCurveName {
+    /// Hable's filmic curve (Uncharted 2) followed by a display gamma of 1/2.2; not sRGB.
+    Filmic,
 }
 
 /// Geometry of one object.

@@ -1,5 +1,5 @@
 //! Writes a synthetic scan in the Matterport3D layout (see shared/notes/formats.md): the segmented mesh, the
-//! segment labels, the camera file and linear EXR photos.
+//! segment labels, the camera file and the photos (linear EXR, or JPEG through the camera pipeline).
 
 use super::SynthError;
 use super::desc::SceneDesc;
@@ -8,12 +8,10 @@ use glam::{Affine3A, Vec3};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a reader never
-/// sees a half-written file.
+/// Writes `bytes` to `path` atomically (the workspace's one writer, [`ingest::atomic::write_atomic`]), so a
+/// reader never sees a half-written file.
 pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), SynthError> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes).map_err(|e| SynthError::Io { path: tmp.clone(), source: e })?;
-    std::fs::rename(&tmp, path).map_err(|e| SynthError::Io { path: path.to_path_buf(), source: e })
+    ingest::atomic::write_atomic(path, bytes).map_err(|e| SynthError::Write { path: path.to_path_buf(), source: e })
 }
 
 /// Binary little-endian PLY with exactly the Matterport header: vertex `x y z nx ny nz tx ty red green blue`,
@@ -76,10 +74,18 @@ pub fn fsegs_json(desc: &SceneDesc, mesh: &SynthMesh) -> serde_json::Value {
     serde_json::json!({"sceneId": desc.house_id, "segIndices": ids})
 }
 
-/// Colour and depth file names of view `k`, in Matterport's `<uuid>_i<camera>_<yaw>` pattern.
+/// Colour and depth file names of view `k`, in Matterport's `<uuid>_i<camera>_<yaw>` pattern: linear EXR from
+/// camera 0, or with a `[camera_pipeline]` a JPEG from physical camera `k % vignetting_corner.len()`.
 #[must_use]
 pub fn image_names(desc: &SceneDesc, k: usize) -> (String, String) {
-    (format!("{}_i0_{k}.exr", desc.house_id), format!("{}_d0_{k}.png", desc.house_id))
+    let id = &desc.house_id;
+    match &desc.camera_pipeline {
+        None => (format!("{id}_i0_{k}.exr"), format!("{id}_d0_{k}.png")),
+        Some(p) => {
+            let c = k % p.vignetting_corner.len().max(1);
+            (format!("{id}_i{c}_{k}.jpg"), format!("{id}_d{c}_{k}.png"))
+        }
+    }
 }
 
 /// The `.conf` camera file: one `intrinsics_matrix` line (all views share the intrinsics) and one `scan` line

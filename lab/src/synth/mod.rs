@@ -9,12 +9,15 @@
 //! house_segmentations/<id>.semseg.json    segment groups with labels
 //! house_segmentations/<id>.fsegs.json     over-segment id per face
 //! undistorted_camera_parameters/<id>.conf intrinsics_matrix + scan lines
-//! undistorted_color_images/<id>_i0_<k>.exr
+//! undistorted_color_images/<id>_i0_<k>.exr            (or <id>_i<c>_<k>.jpg with [camera_pipeline])
 //! ground_truth_materials.json
+//! ground_truth_camera.json                           (with [camera_pipeline] only)
 //! ```
 //! Deterministic: the same description gives byte-identical files (the tracer's random numbers are keyed
-//! by seed, view, pixel and sample, and EXR is written uncompressed from the same floats).
+//! by seed, view, pixel and sample, EXR is written from the same floats, and the camera pipeline's draws are
+//! keyed by seed and photo, see [`camera_pipeline`]).
 
+pub mod camera_pipeline;
 pub mod desc;
 pub mod matterport;
 pub mod mesh;
@@ -29,6 +32,10 @@ use std::path::{Path, PathBuf};
 pub enum SynthError {
     #[error("{path}: {source}")]
     Io { path: PathBuf, source: std::io::Error },
+    #[error("{source}")]
+    Write { path: PathBuf, source: ingest::IngestError },
+    #[error("{path}: cannot encode JPEG: {message}")]
+    Jpeg { path: PathBuf, message: String },
     #[error("{path}: bad scene description: {message}")]
     Desc { path: PathBuf, message: String },
     #[error("{path}: {message}")]
@@ -58,9 +65,13 @@ pub struct BuiltScene {
 /// Reads and validates a description file.
 pub fn load_desc(path: &Path) -> Result<SceneDesc, SynthError> {
     let text = std::fs::read_to_string(path).map_err(|e| SynthError::Io { path: path.to_path_buf(), source: e })?;
-    let desc: SceneDesc =
-        toml::from_str(&text).map_err(|e| SynthError::Desc { path: path.to_path_buf(), message: e.to_string() })?;
     let bad = |message: String| SynthError::Desc { path: path.to_path_buf(), message };
+    let desc: SceneDesc = toml::from_str(&text).map_err(|e| {
+        // toml's own Display quotes the source over several lines; the error stays one line: line + message.
+        let line = e.span().and_then(|s| text.get(..s.start)).map(|before| before.matches('\n').count() + 1);
+        let message = e.message().split_whitespace().collect::<Vec<_>>().join(" ");
+        bad(line.map_or(message.clone(), |l| format!("line {l}: {message}")))
+    })?;
     if desc.objects.is_empty() || desc.cameras.is_empty() {
         return Err(bad("needs at least one object and one camera".into()));
     }
@@ -92,6 +103,9 @@ pub fn load_desc(path: &Path) -> Result<SceneDesc, SynthError> {
         if !o.emission.iter().all(|&e| e >= 0.0 && e.is_finite()) {
             return Err(bad(format!("object {}: emission must be finite and ≥ 0", o.id)));
         }
+    }
+    if let Some(p) = &desc.camera_pipeline {
+        camera_pipeline::validate(p).map_err(bad)?;
     }
     Ok(desc)
 }
@@ -262,12 +276,27 @@ pub fn write_scan(built: &BuiltScene, out_dir: &Path) -> Result<(), SynthError> 
         &cam_dir.join(format!("{id}.conf")),
         matterport::conf_text(&built.desc, &built.cameras).as_bytes(),
     )?;
+    let mut draws = Vec::new();
     for (k, img) in photos(built)?.iter().enumerate() {
         let path = img_dir.join(matterport::image_names(&built.desc, k).0);
-        let bytes = matterport::exr_bytes(&path, img.width, img.height, &img.rgb)?;
+        let bytes = match &built.desc.camera_pipeline {
+            None => matterport::exr_bytes(&path, img.width, img.height, &img.rgb)?,
+            Some(spec) => {
+                let d = camera_pipeline::draw(spec, built.desc.seed, k);
+                let codes = camera_pipeline::to_codes(spec, &d, &built.cameras[k], &img.rgb);
+                let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+                draws.push((stem, d));
+                camera_pipeline::jpeg_bytes(&codes, img.width, img.height, spec.jpeg_quality)
+                    .map_err(|e| SynthError::Jpeg { path: path.clone(), message: e.to_string() })?
+            }
+        };
         matterport::write_file(&path, &bytes)?;
     }
     matterport::write_file(&out_dir.join("ground_truth_materials.json"), &json(&ground_truth_json(built)))?;
+    if let Some(spec) = &built.desc.camera_pipeline {
+        let truth = camera_pipeline::truth_json(spec, &draws);
+        matterport::write_file(&out_dir.join("ground_truth_camera.json"), &json(&truth))?;
+    }
     tracing::info!(out = %out_dir.display(), views = built.cameras.len(), "synthetic scan written");
     Ok(())
 }
