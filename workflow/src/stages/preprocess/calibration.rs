@@ -13,7 +13,7 @@
 
 use glam::{DVec3, Vec3};
 use ingest::View;
-use ingest::photo::calibrate::{Calibration, CalibrationOptions, Observation, ResponseMode};
+use ingest::photo::calibrate::{Calibration, CalibrationOptions, Observation, ResponseMode, normalised_r2};
 use ingest::photo::{DecodedImage, read_image};
 use optim::streams::{draw, uniform};
 use rayon::prelude::*;
@@ -120,7 +120,8 @@ fn observe(
                 [0, 1, 2].map(|c| f32::from(img.codes[3 * i + c]) / m)
             }
         };
-        let r2 = ingest::photo::calibrate::radius2(cam, f64::from(x), f64::from(y)) as f32;
+        let k = &cam.intrinsics;
+        let r2 = normalised_r2(f64::from(x), f64::from(y), k.cx, k.cy, cam.width, cam.height) as f32;
         out.push(Observation { point: k as u32, photo: view_index as u32, r2, value });
     }
     out
