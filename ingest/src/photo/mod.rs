@@ -200,7 +200,8 @@ fn apply_calibration(mut img: LinearImage, camera: &Camera, opts: &PhotoOptions)
     let (cx, cy) = (camera.intrinsics.cx, camera.intrinsics.cy);
     for y in 0..h {
         for x in 0..w {
-            let v = opts.vignetting.map_or(1.0, |v| v.factor(calibrate::normalised_r2(x.into(), y.into(), cx, cy, w, h)));
+            let v =
+                opts.vignetting.map_or(1.0, |v| v.factor(calibrate::normalised_r2(x.into(), y.into(), cx, cy, w, h)));
             let i = 3 * (y as usize * w as usize + x as usize);
             for c in 0..3 {
                 img.rgb[i + c] = (f64::from(img.rgb[i + c]) / (f64::from(gain[c]) * v)) as f32;

@@ -6,9 +6,16 @@
 use super::{CalibrateError, Calibration, CalibrationOptions, Observation, calibrate};
 use crate::photo::image_io::DisplayImage;
 
-/// Pixel positions sampled: 3000 points × N photos × 3 channels is ample for ~150 unknowns (response knots and
-/// gains) while keeping the solve well under a second; more only sharpens what is already fixed.
-const SAMPLES: usize = 3000;
+/// Pixel positions sampled uniformly: 2000 points × N photos × 3 channels is ample for ~150 unknowns
+/// (response knots and gains) while keeping the solve well under a second.
+const SAMPLES: usize = 2000;
+/// Further positions per photo among its well-exposed pixels: in a wide bracket the darkest photos are
+/// well exposed only on a few bright objects (a window), which uniform sampling hits a few dozen times —
+/// too few to tie those photos' exposures to the rest within a few percent.
+const SAMPLES_PER_PHOTO: usize = 400;
+/// Well exposed: every channel within these codes (fractions of the code range), the middle of the range
+/// where the response is fitted (see `model::START_CODES`).
+const WELL_EXPOSED: (f64, f64) = (40.0 / 255.0, 216.0 / 255.0);
 
 /// SplitMix64 (Steele, Lea & Flood 2014): a tiny, well-mixed seeded generator.
 struct SplitMix64(u64);
@@ -23,8 +30,8 @@ impl SplitMix64 {
     }
 }
 
-/// Calibrates an aligned bracket (≥ 2 images of equal size): samples [`SAMPLES`] pixel positions with
-/// `opts.seed` and calls [`calibrate`] with one camera group and `vignetting` off. Pixels invalid (alpha 0)
+/// Calibrates an aligned bracket (≥ 2 images of equal size): samples pixel positions with `opts.seed`
+/// ([`SAMPLES`] uniformly, [`SAMPLES_PER_PHOTO`] among each photo's well-exposed pixels) and calls [`calibrate`] with one camera group and `vignetting` off. Pixels invalid (alpha 0)
 /// in an image are left out of that image.
 pub fn calibrate_bracket(images: &[DisplayImage], opts: &CalibrationOptions) -> Result<Calibration, CalibrateError> {
     let Some(first) = images.first() else {
@@ -46,9 +53,26 @@ pub fn calibrate_bracket(images: &[DisplayImage], opts: &CalibrationOptions) -> 
         return Err(CalibrateError::Bracket("images are empty".into()));
     }
     let mut rng = SplitMix64(opts.seed);
-    let mut observations = Vec::with_capacity(SAMPLES * images.len());
-    for point in 0..SAMPLES.min(pixels) {
-        let i = (rng.next_u64() % pixels as u64) as usize;
+    let mut positions: Vec<usize> =
+        (0..SAMPLES.min(pixels)).map(|_| (rng.next_u64() % pixels as u64) as usize).collect();
+    for img in images {
+        let max = f64::from(img.max_code.max(1));
+        let well: Vec<usize> = (0..pixels)
+            .filter(|&i| {
+                img.mask[i] != 0
+                    && img.codes[3 * i..3 * i + 3]
+                        .iter()
+                        .all(|&z| (WELL_EXPOSED.0..=WELL_EXPOSED.1).contains(&(f64::from(z) / max)))
+            })
+            .collect();
+        if !well.is_empty() {
+            positions.extend((0..SAMPLES_PER_PHOTO).map(|_| well[(rng.next_u64() % well.len() as u64) as usize]));
+        }
+    }
+    positions.sort_unstable();
+    positions.dedup();
+    let mut observations = Vec::with_capacity(positions.len() * images.len());
+    for (point, &i) in positions.iter().enumerate() {
         for (photo, img) in images.iter().enumerate() {
             if img.mask[i] == 0 || img.max_code == 0 {
                 continue;

@@ -22,8 +22,8 @@
 
 mod bracket;
 mod model;
-mod result;
 pub mod response;
+mod result;
 mod solve;
 
 pub use bracket::calibrate_bracket;

@@ -29,12 +29,10 @@ const SMOOTHNESS: f64 = 0.1;
 /// Floor of the hat factor of the smoothness weight, so that knots beyond the last observation are still tied
 /// to their neighbours (linear extrapolation) instead of being left free.
 const MIN_SMOOTHING_HAT: f64 = 0.05;
-/// Codes of the rows that start an estimated response's IRLS: the middle 32..=224 of 255, away from the toe
-/// and shoulder where a response may be flat (fog, clipping) and contradict the exposure ratios.
+/// Codes of the rows an estimated response is fitted to: the middle 32..=224 of 255, away from the toe and
+/// shoulder where a response may be flat (a film's fog floor, clipping) and contradict the exposure ratios.
+/// The curve outside is the smoothness penalty's extrapolation.
 const START_CODES: (f64, f64) = (32.0 / 255.0, 224.0 / 255.0);
-/// Mean squared log gain (provisional units) below which the first solve's gains are too uniform to serve
-/// as the scale gauge (≈ 1 % spread).
-const MIN_GAIN_VARIANCE: f64 = 1e-4;
 /// Reference code of the response normalisation and offset gauge (`curve(128) = 1`).
 const REF_CODE: f64 = 128.0 / 255.0;
 /// Codes of the provisional scale gauge of an estimated response: a quarter and three quarters of the range,
@@ -65,7 +63,11 @@ fn usable(v: f32, mode: ResponseMode) -> Option<(f64, f64)> {
 
 /// Which photos are solved: iteratively drop photos with fewer than [`MIN_LINKS`] links, then keep the
 /// largest connected set (photos joined by shared points). Returns the kept flags and the reasons of the rest.
-fn linked_photos(n_photos: usize, obs: &[(usize, u32)], observations: &[Observation]) -> (Vec<bool>, Vec<(u32, String)>) {
+fn linked_photos(
+    n_photos: usize,
+    obs: &[(usize, u32)],
+    observations: &[Observation],
+) -> (Vec<bool>, Vec<(u32, String)>) {
     let mut active = vec![true; n_photos];
     let mut reasons = Vec::new();
     let mut by_point: HashMap<u32, Vec<u32>> = HashMap::new();
@@ -88,7 +90,10 @@ fn linked_photos(n_photos: usize, obs: &[(usize, u32)], observations: &[Observat
         }
         for p in drop {
             active[p] = false;
-            reasons.push((p as u32, format!("{} usable observations shared with other photos, need {MIN_LINKS}", links[p])));
+            reasons.push((
+                p as u32,
+                format!("{} usable observations shared with other photos, need {MIN_LINKS}", links[p]),
+            ));
         }
     }
     // Union-find over photos joined by a shared point.
@@ -208,21 +213,21 @@ pub(super) fn run(
         })
         .collect();
     let layout = Layout { gain, per_photo, beta, n };
-    // A known response is trusted over its whole range: start from every row with Huber's weights. An
-    // estimated one starts from mid codes only and goes straight to Tukey's weights: the toe of a film
-    // response (codes that barely move over several stops, or a fog floor that does not move at all) would
-    // otherwise flatten the first curve and with it every exposure ratio.
-    let huber_iterations = if mode == ResponseMode::Estimate { 0 } else { solve::HUBER_ITERATIONS };
+    // A known response is trusted over its whole range: every row, Huber's weights, then Tukey's. An
+    // estimated one uses mid codes only (see START_CODES) and Huber's weights throughout: the exponent gauge
+    // is not a symmetry of Tukey's bounded loss, and the biweight finds it cheaper to reject every row of one
+    // channel or photo and let that block absorb the gauge while the rest flattens (measured on the Memorial
+    // bracket: every exposure ratio collapses to 1). Huber's loss is convex, so the gauged problem has one
+    // minimum, and its influence is still bounded.
+    let huber_iterations = if mode == ResponseMode::Estimate { usize::MAX } else { solve::HUBER_ITERATIONS };
     let mut problem = Problem { n_params: layout.n, huber_iterations, ..Problem::default() };
     let mut row_cell = Vec::with_capacity(cells.len());
-    let mut total_w = 0.0;
     for g in &groups {
         let s = problem.rows.len();
         for j in g.clone() {
             let (i, c, y, w) = cells[j];
             let o = &observations[i];
             let mut row = Row::new(y, w);
-            total_w += w;
             if mode == ResponseMode::Estimate {
                 let (k, t) = response::knot_weights(f64::from(o.value[c as usize]));
                 row.push(c as usize * KNOTS + k, 1.0 - t);
@@ -246,10 +251,19 @@ pub(super) fn run(
         }
         problem.groups.push(s..problem.rows.len());
     }
+    // The smoothness is relative to the weight of the rows that take part.
+    let total_w: f64 = if problem.start.is_empty() {
+        problem.rows.iter().map(|r| r.w).sum()
+    } else {
+        problem.rows.iter().zip(&problem.start).map(|(r, s)| r.w * s).sum()
+    };
     let n_scale = add_gauges(&mut problem, &layout, opts, total_w);
-    gauge_on_gains(&mut problem, &layout, n_scale)?;
+    gauge_on_shape(&mut problem, &layout, n_scale)?;
     let sol = solve::solve(&problem).ok_or(CalibrateError::Singular)?;
-    let rows = RowInfo { observation: row_cell.iter().map(|&j| cells[j].0).collect(), channel: row_cell.iter().map(|&j| cells[j].1 as usize).collect() };
+    let rows = RowInfo {
+        observation: row_cell.iter().map(|&j| cells[j].0).collect(),
+        channel: row_cell.iter().map(|&j| cells[j].1 as usize).collect(),
+    };
     Ok(finish(n_groups, opts, &layout, &problem, &sol, &rows, unconstrained, clipped_channels, estimated))
 }
 
@@ -264,11 +278,15 @@ fn add_gauges(problem: &mut Problem, layout: &Layout, opts: &CalibrationOptions,
             // need only two constraints (the third is implied).
             let channels = if opts.exposure { 3 } else { 2 };
             for c in 0..channels {
-                problem.constraints.push(Constraint { entries: solved.iter().map(|&g| (g + c, 1.0)).collect(), target: 0.0 });
+                problem
+                    .constraints
+                    .push(Constraint { entries: solved.iter().map(|&g| (g + c, 1.0)).collect(), target: 0.0 });
             }
             if !opts.exposure {
                 for &g in &solved {
-                    problem.constraints.push(Constraint { entries: (0..3).map(|c| (g + c, 1.0)).collect(), target: 0.0 });
+                    problem
+                        .constraints
+                        .push(Constraint { entries: (0..3).map(|c| (g + c, 1.0)).collect(), target: 0.0 });
                 }
             }
         }
@@ -305,29 +323,46 @@ fn add_gauges(problem: &mut Problem, layout: &Layout, opts: &CalibrationOptions,
     n
 }
 
-/// Replaces the response's provisional scale gauge (a span of the curve) by one on the gains: their projection
-/// on the direction of a first solve from the start rows stays fixed. A curve span leaves the IRLS free to
+/// Replaces the response's provisional scale gauge (a span of the curve between two codes) by the curve's
+/// projection on the shape of a first solve from the start rows. A two-code span leaves the IRLS free to
 /// flatten the curve everywhere else and shrink every exposure ratio towards 1 — the direction in which a
-/// film's fog floor (codes that do not move with exposure) pulls; fixing the gains' spread closes that door.
-/// Keeps the curve gauge when the first gains hardly vary (a single exposure) or no exposures are solved.
-fn gauge_on_gains(problem: &mut Problem, layout: &Layout, n_scale: usize) -> Result<(), CalibrateError> {
-    if n_scale == 0 || layout.per_photo == 0 {
+/// film's fog floor (codes that do not move with exposure) pulls; the projection involves every knot the start
+/// rows reach, so flattening the curve violates it. It does not involve the gains either: a photo whose rows
+/// all end up rejected cannot absorb the scale.
+fn gauge_on_shape(problem: &mut Problem, layout: &Layout, n_scale: usize) -> Result<(), CalibrateError> {
+    if n_scale == 0 {
         return Ok(());
     }
     let first = solve::solve_weighted(problem, &problem.start).ok_or(CalibrateError::Singular)?;
-    let solved: Vec<usize> = layout.gain.iter().flatten().copied().collect();
-    let channels: Vec<usize> = if layout.per_photo == 3 { vec![0, 1, 2] } else { vec![0] };
+    let mut support = vec![0usize; problem.n_params];
+    for (row, &w) in problem.rows.iter().zip(&problem.start) {
+        if w > 0.0 {
+            for k in 0..usize::from(row.len) {
+                support[row.idx[k] as usize] += 1;
+            }
+        }
+    }
+    // Shared gains tie the channels' exponents: one gauge over all knots; per-channel gains one per channel.
+    let channel_sets: Vec<Vec<usize>> =
+        if layout.per_photo == 3 { vec![vec![0], vec![1], vec![2]] } else { vec![vec![0, 1, 2]] };
     let mut gauges = Vec::new();
-    for c in channels {
-        let entries: Vec<(usize, f64)> = solved.iter().map(|&g| (g + c, first[g + c])).collect();
+    for set in channel_sets {
+        let knots: Vec<usize> =
+            set.iter().flat_map(|&c| c * KNOTS..(c + 1) * KNOTS).filter(|&k| support[k] >= MIN_LINKS).collect();
+        // Centred per channel: the offsets are gauged separately (curve(128) = 1).
+        let mut entries = Vec::new();
+        for &c in &set {
+            let own: Vec<usize> = knots.iter().copied().filter(|k| k / KNOTS == c).collect();
+            let mean = own.iter().map(|&k| first[k]).sum::<f64>() / own.len().max(1) as f64;
+            entries.extend(own.iter().map(|&k| (k, first[k] - mean)));
+        }
         let target: f64 = entries.iter().map(|e| e.1 * e.1).sum();
-        if target / (solved.len() as f64) < MIN_GAIN_VARIANCE {
+        if target <= 0.0 || !target.is_finite() {
             return Ok(());
         }
         gauges.push(Constraint { entries, target });
     }
-    // Shared gains have one scale gauge (green); per-channel gains one per channel: the same count.
     problem.constraints.truncate(problem.constraints.len() - n_scale);
-    problem.constraints.extend(gauges.into_iter().take(n_scale));
+    problem.constraints.extend(gauges);
     Ok(())
 }

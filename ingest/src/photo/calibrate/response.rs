@@ -112,8 +112,9 @@ fn lattice_misfit(log_exposures: &[f64], kappa: f64) -> f64 {
     1.0 - (re * re + im * im).sqrt() / log_exposures.len() as f64
 }
 
-/// Chooses κ (multiplying the provisional `h`, log gains, vignetting): the lattice-fitting κ nearest the shape
-/// prior within [`LATTICE_WINDOW`], else the shape prior.
+/// Chooses κ (multiplying the provisional `h`, log gains, vignetting): the one κ within [`LATTICE_WINDOW`] of
+/// the shape prior that puts the exposures on the lattice; the shape prior itself when none or several do
+/// (`misfit` is then the lowest lattice misfit in the window).
 pub(super) fn choose_scale(prior: f64, log_exposures: &[f64]) -> ScaleChoice {
     let fallback = ScaleChoice { kappa: prior, source: GammaSource::ShapePrior, misfit: f64::NAN };
     // Distinct exposures: with two, some γ near any prior puts them on the lattice; three are the least that
@@ -127,27 +128,31 @@ pub(super) fn choose_scale(prior: f64, log_exposures: &[f64]) -> ScaleChoice {
     let lo = prior.ln() - LATTICE_WINDOW.ln();
     let steps = (2.0 * LATTICE_WINDOW.ln() / LATTICE_GRID).ceil() as usize;
     let f = |i: usize| lattice_misfit(log_exposures, (lo + i as f64 * LATTICE_GRID).exp());
-    let mut best: Option<(f64, f64)> = None;
+    let mut best: Option<f64> = None;
+    let mut candidates = 0;
+    let mut lowest = f64::INFINITY;
     let (mut prev, mut cur) = (f(0), f(1));
     for i in 1..steps {
         let next = f(i + 1);
+        lowest = lowest.min(cur);
         if cur <= prev && cur <= next && cur < LATTICE_FIT_MAX {
             // Parabolic refinement of the minimum through the three grid points.
             let denom = prev - 2.0 * cur + next;
             let shift = if denom > 0.0 { 0.5 * (prev - next) / denom } else { 0.0 };
             let kappa = (lo + (i as f64 + shift.clamp(-1.0, 1.0)) * LATTICE_GRID).exp();
-            let distance = (kappa / prior).ln().abs();
-            if best.is_none_or(|(_, d)| distance < d) {
-                best = Some((kappa, distance));
-            }
+            candidates += 1;
+            best = Some(kappa);
         }
         (prev, cur) = (cur, next);
     }
-    best.map_or(fallback, |(kappa, _)| ScaleChoice {
-        kappa,
-        source: GammaSource::ExposureLattice,
-        misfit: lattice_misfit(log_exposures, kappa),
-    })
+    // Two lattice fits within the window (a bracket in whole stops fits every ⅓-multiple of the true γ) and
+    // the prior cannot tell which: refuse rather than guess.
+    match best {
+        Some(kappa) if candidates == 1 => {
+            ScaleChoice { kappa, source: GammaSource::ExposureLattice, misfit: lattice_misfit(log_exposures, kappa) }
+        }
+        _ => ScaleChoice { misfit: lowest, ..fallback },
+    }
 }
 
 #[cfg(test)]
@@ -165,13 +170,16 @@ mod tests {
     #[test]
     fn lattice_recovers_the_scale_near_a_rough_prior() {
         // Exposures in ⅓-EV steps, seen through γ = 0.8 (so the truth is κ = 1.25); the prior is 12 % off.
-        let truth: [f64; 5] = [-3.0, -1.0, 0.0, 2.0, 3.0];
+        let truth: [f64; 5] = [-3.0, -1.0, 0.0, 2.0, 7.0];
         let seen: Vec<f64> = truth.iter().map(|n| 0.8 * n * LATTICE_STEP + 0.1).collect();
         let choice = choose_scale(1.25 * 1.12, &seen);
         assert_eq!(choice.source, GammaSource::ExposureLattice);
         assert!((choice.kappa - 1.25).abs() < 1e-3, "{choice:?}");
         // Two exposures never decide.
         assert_eq!(choose_scale(1.0, &seen[..2]).source, GammaSource::ShapePrior);
+        // Whole-stop steps fit every third of the true κ: several candidates in the window, no decision.
+        let stops: Vec<f64> = [0.0, 3.0, 6.0, 9.0, 12.0].iter().map(|n| 0.8 * n * LATTICE_STEP).collect();
+        assert_eq!(choose_scale(1.25 * 1.12, &stops).source, GammaSource::ShapePrior);
     }
 
     #[test]

@@ -80,9 +80,9 @@ pub(super) struct Problem {
     pub groups: Vec<Range<usize>>,
     pub penalties: Vec<Penalty>,
     pub constraints: Vec<Constraint>,
-    /// Robust weights of the first solve (empty = all 1): a start from trusted rows only.
+    /// 0/1 mask of the rows that take part (empty = all): it multiplies the robust weights throughout.
     pub start: Vec<f64>,
-    /// Huber iterations before Tukey's; 0 when `start` is already free of outliers.
+    /// Huber iterations before Tukey's (`usize::MAX`: Huber only).
     pub huber_iterations: usize,
 }
 
@@ -126,9 +126,9 @@ pub(super) fn solve(problem: &Problem) -> Option<Solution> {
         theta = next;
         residuals(problem, &theta, &robust, &mut residual);
         let sigma = robust_scale(problem, &residual);
-        let tukey = iteration + 1 >= problem.huber_iterations;
+        let tukey = iteration.saturating_add(1) >= problem.huber_iterations;
         for (r, e) in robust.iter_mut().zip(&residual) {
-            let t = (e / sigma).abs();
+            let t = if e.is_finite() { (e / sigma).abs() } else { 0.0 };
             *r = if tukey {
                 if t < TUKEY_C { (1.0 - (t / TUKEY_C).powi(2)).powi(2) } else { 0.0 }
             } else if t <= HUBER_K {
@@ -137,7 +137,13 @@ pub(super) fn solve(problem: &Problem) -> Option<Solution> {
                 HUBER_K / t
             };
         }
-        if tukey && iteration >= problem.huber_iterations && step < STEP_TOLERANCE {
+        if !problem.start.is_empty() {
+            for (r, s) in robust.iter_mut().zip(&problem.start) {
+                *r *= s;
+            }
+        }
+        let settled = !tukey || iteration >= problem.huber_iterations;
+        if settled && iteration > 0 && step < STEP_TOLERANCE {
             break;
         }
     }
@@ -145,37 +151,45 @@ pub(super) fn solve(problem: &Problem) -> Option<Solution> {
     Some(Solution { theta, robust, residual })
 }
 
-/// Residuals for `theta` with each group's log radiance at its weighted mean.
+/// Leave-one-out residuals for `theta`: each row against the weighted mean log radiance of the *other* rows
+/// of its group (their plain mean when all of them are rejected; NaN for a row alone in its group). Ordinary
+/// residuals shrink as a group loses rows — to exactly 0 for the last one kept — so a robust scale computed
+/// from them falls as rows are rejected, which rejects more rows: a collapse onto a few self-consistent rows.
+/// Leave-one-out residuals do not shrink.
 fn residuals(problem: &Problem, theta: &[f64], robust: &[f64], out: &mut [f64]) {
     for g in &problem.groups {
-        let (mut sw, mut swp) = (0.0, 0.0);
+        let (mut sw, mut swp, mut sp) = (0.0, 0.0, 0.0);
         for j in g.clone() {
             let w = problem.rows[j].w * robust[j];
+            let p = problem.rows[j].predict(theta);
             sw += w;
-            swp += w * problem.rows[j].predict(theta);
+            swp += w * p;
+            sp += p;
         }
-        let l = if sw > 0.0 {
-            swp / sw
-        } else {
-            // Every row of the group rejected: its radiance is the plain mean, so the residuals still say how
-            // far off the rows are.
-            g.clone().map(|j| problem.rows[j].predict(theta)).sum::<f64>() / g.len() as f64
-        };
+        let n = g.len() as f64;
         for j in g.clone() {
-            out[j] = problem.rows[j].predict(theta) - l;
+            let w = problem.rows[j].w * robust[j];
+            let p = problem.rows[j].predict(theta);
+            // A relative threshold: below 1e-9 of the group's weight, the others hold no weight.
+            out[j] = if sw - w > 1e-9 * sw {
+                p - (swp - w * p) / (sw - w)
+            } else if n > 1.0 {
+                p - (sp - p) / (n - 1.0)
+            } else {
+                f64::NAN
+            };
         }
     }
 }
 
-/// Scale of the residuals: the base-weighted median of their absolute values (rows in groups of at least two;
-/// single rows have residual 0), × 1.4826. Weighting by the base weight lets the rows the model trusts set the
+/// Scale of the residuals: the base-weighted median of their absolute (leave-one-out) values, × 1.4826. Weighting by the base weight lets the rows the model trusts set the
 /// scale even when many low-weight rows (a film toe, say) are far off.
 fn robust_scale(problem: &Problem, residual: &[f64]) -> f64 {
     let mut abs: Vec<(f64, f64)> = problem
         .groups
         .iter()
-        .filter(|g| g.len() >= 2)
         .flat_map(|g| g.clone())
+        .filter(|&j| residual[j].is_finite())
         .map(|j| (residual[j].abs(), problem.rows[j].w))
         .collect();
     let total: f64 = abs.iter().map(|a| a.1).sum();
