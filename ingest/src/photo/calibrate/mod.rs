@@ -6,9 +6,9 @@
 //! radius `r²` ([`normalised_r2`]) as `z_c = f_c(g_{p,c} · v_k(r²) · L_c)`, so with `h_c = ln f_c⁻¹`
 //! `h_c(z_c) = ln g_{p,c} + ln v_k(r²) + ln L_c` — linear in the log gains, the vignetting coefficients
 //! (`ln v = β1 r² + β2 r⁴ + β3 r⁶`, so `v(0) = 1`) and the log radiances, and, when the response is estimated,
-//! in the response's knot values too ([`response`]). [`solve`] minimises it as robust (IRLS: Huber, then
-//! Tukey) weighted least squares with every point's log radiance eliminated; [`model`] builds the rows and
-//! decides which photos are linked well enough to be solved.
+//! in the response's knot values too ([`response`]). `solve` minimises it as robust weighted least squares
+//! (IRLS: Huber then Tukey with a known response, Huber only when it is estimated) with every point's log
+//! radiance eliminated; `model` builds the rows and decides which photos are linked well enough to be solved.
 //!
 //! Gauges: the geometric mean of the solved photos' gains is 1 per channel (radiance and gain trade exactly);
 //! with white balance, `ln g_{p,c} = ln exposure_p + ln wb_{p,c}` with `Σ_c ln wb_{p,c} = 0`. An estimated
@@ -18,7 +18,7 @@
 //! how it was fixed and [`Calibration::gamma_reliable`] whether that is trustworthy. Measurements and the
 //! choices they led to: `docs/photo/self-calibration.md`.
 //!
-//! [`calibrate_bracket`] ([`bracket`]) is the front end for an aligned exposure bracket.
+//! [`calibrate_bracket`] (`bracket`) is the front end for an aligned exposure bracket.
 
 mod bracket;
 mod model;

@@ -12,8 +12,9 @@
 //! 1. the **shape prior**: the γ for which `h` is closest (least squares in `ln`, over mid codes) to the sRGB
 //!    curve's `ln` — right when the camera encodes roughly as sRGB, off by the ratio of log-log slopes otherwise;
 //! 2. the **exposure lattice**: cameras set exposure (shutter, aperture, ISO) in steps of ⅓ EV, so the log
-//!    exposure ratios are multiples of `ln 2 / 3`. Among the γ near the shape prior, the one that puts every
-//!    recovered exposure onto that lattice is exact whatever the curve. It needs ≥ 3 distinct exposures.
+//!    exposure ratios are multiples of `ln 2 / 3`. When exactly one γ near the shape prior puts every
+//!    recovered exposure onto that lattice, it is exact whatever the curve. It needs ≥ 3 distinct exposures;
+//!    otherwise (or when several γ fit) the shape prior stands and the result is flagged unreliable.
 
 use std::f64::consts::{LN_2, PI};
 
@@ -71,8 +72,9 @@ pub(super) fn gauge_span(lo: f64, hi: f64) -> f64 {
 
 /// The exposure lattice step: ⅓ EV, the finest step of camera exposure controls.
 pub(super) const LATTICE_STEP: f64 = LN_2 / 3.0;
-/// Search window around the shape prior, as a factor either side: the prior's γ is within ×1.3 of the truth
-/// on every curve measured (filmic, gamma 2.2, film scan; docs/photo/self-calibration.md).
+/// Search window around the shape prior, as a factor either side: it covers the prior's error on the curves
+/// measured where a lattice exists (≈ 20 % filmic, ≈ 5 % gamma 2.2; docs/photo/self-calibration.md), and is
+/// narrow enough that a ⅓-EV bracket has one lattice fit in it (the next is at twice the true γ).
 const LATTICE_WINDOW: f64 = 1.3;
 /// A γ fits the lattice when `1 − |mean exp(2πi·γ·ln e_p / step)|` is below this: 0.02 allows an rms
 /// deviation of ≈ 0.03 step (`√(2·0.02)/2π`), i.e. 0.7 % in exposure, far above the estimation noise and far

@@ -9,13 +9,13 @@
 //! penalties (smoothness, ridges) are added to the normal matrix; hard linear constraints (the gauges) enter
 //! through a KKT system solved by LU.
 //!
-//! Robustness: iteratively reweighted least squares, Huber weights for the first iterations (convex, so
-//! the start does not matter) and Tukey's biweight after (rejects gross outliers — highlights, occlusions —
-//! completely). The robust weights compare each residual with one scale for all rows (the base-weighted median
-//! absolute residual): a low-weight row is not excused a large residual. The base weights say how much a
-//! row's noise is amplified (quantisation in a steep part of the curve), not that it may be biased, and rows
-//! that are biased — a film's fog floor, which does not move with exposure at all — are exactly the
-//! low-weight ones; excusing them lets them drag the curve flat.
+//! Robustness: iteratively reweighted least squares, Huber weights for the first iterations (convex, so the start does
+//! not matter) and Tukey's biweight after (rejects gross outliers — highlights, occlusions — completely), or Huber
+//! throughout when the caller asks (a gauge that is not a symmetry of the biweight). The robust weights compare each
+//! residual with one scale for all rows (the base-weighted median absolute residual): a low-weight row is not excused a
+//! large residual. The base weights say how much a row's noise is amplified (quantisation in a steep part of the
+//! curve), not that it may be biased, and rows that are biased — a film's fog floor, which does not move with exposure
+//! at all — are exactly the low-weight ones; excusing them lets them drag the curve flat.
 
 use std::ops::Range;
 
@@ -182,8 +182,9 @@ fn residuals(problem: &Problem, theta: &[f64], robust: &[f64], out: &mut [f64]) 
     }
 }
 
-/// Scale of the residuals: the base-weighted median of their absolute (leave-one-out) values, × 1.4826. Weighting by the base weight lets the rows the model trusts set the
-/// scale even when many low-weight rows (a film toe, say) are far off.
+/// Scale of the residuals: the base-weighted median of their absolute (leave-one-out) values, × 1.4826. Weighting by
+/// the base weight lets the rows the model trusts set the scale even when many low-weight rows (a film toe, say) are
+/// far off.
 fn robust_scale(problem: &Problem, residual: &[f64]) -> f64 {
     let mut abs: Vec<(f64, f64)> = problem
         .groups
