@@ -5,6 +5,7 @@ use std::path::Path;
 
 use glam::DMat4;
 use ingest::camera::{Camera, Distortion, Intrinsics};
+use ingest::photo::calibrate::{Vignetting, normalised_r2};
 use ingest::photo::{LinearImage, PhotoOptions, ResponseCurve, prepare_view, write_exr};
 use ingest::srgb::{decode as srgb_to_linear, encode as linear_to_srgb};
 
@@ -168,4 +169,35 @@ fn radiance_hdr_input_is_linear_within_rgbe_precision() {
             assert!((img.rgb[3 * i + c] - p.0[c]).abs() <= max / 128.0, "pixel {i} channel {c}");
         }
     }
+}
+
+#[test]
+fn calibrated_gain_and_vignetting_divide_the_linear_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("grey.png");
+    let (w, h) = (12u32, 8u32);
+    image::RgbImage::from_pixel(w, h, image::Rgb([128, 100, 160])).save(&path).unwrap();
+    let camera = pinhole(w, h);
+    let (_, plain) = prepare_view(&path, &camera, &PhotoOptions::default()).unwrap();
+    let vignetting = Vignetting { beta: [-0.5, 0.1, 0.0] };
+    let gain = [2.0f32, 0.5, 1.25];
+    let opts = PhotoOptions { gain: Some(gain), vignetting: Some(vignetting), ..Default::default() };
+    let (_, calibrated) = prepare_view(&path, &camera, &opts).unwrap();
+    let (cx, cy) = (camera.intrinsics.cx, camera.intrinsics.cy);
+    for y in 0..h {
+        for x in 0..w {
+            let v = vignetting.factor(normalised_r2(x.into(), y.into(), cx, cy, w, h));
+            for c in 0..3 {
+                let i = 3 * (y * w + x) as usize + c;
+                let expected = f64::from(plain.rgb[i]) / (f64::from(gain[c]) * v);
+                let got = f64::from(calibrated.rgb[i]);
+                assert!((got - expected).abs() <= 1e-6 * expected, "({x}, {y}) channel {c}: {got} vs {expected}");
+            }
+        }
+    }
+    // The corner pixels are darkened most: r² = 1 at the outer corner, a little less at the pixel centre.
+    assert!(normalised_r2(-0.5, -0.5, cx, cy, w, h) > 0.999);
+    // Options written before these fields existed still read.
+    let old: PhotoOptions = serde_json::from_str(r#"{"response":null,"exposure_time":null,"downscale":1}"#).unwrap();
+    assert_eq!(old, PhotoOptions::default());
 }

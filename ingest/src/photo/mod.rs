@@ -13,9 +13,14 @@
 //! 5. callers cache the result ([`cache`]): `<name>.exr` (R, G, B, mask; written by [`exr`], the workspace's one
 //!    EXR writer) + `<name>.json` (camera).
 //!
+//! Radiometric self-calibration ([`calibrate`]) recovers per-photo gains (exposure, white balance), per-camera
+//! vignetting and, for LDR photos, the response from observations of the same points in several photos;
+//! [`PhotoOptions::gain`] and [`PhotoOptions::vignetting`] apply its result in step 2.
+//!
 //! Pixel convention: as in [`crate::camera`], pixel centres at integer coordinates.
 
 pub mod cache;
+pub mod calibrate;
 pub mod downscale;
 pub mod exr;
 pub mod image_io;
@@ -164,12 +169,46 @@ pub struct PhotoOptions {
     pub exposure_time: Option<f64>,
     /// Integer downscale factor (1 = full resolution), area-averaged in linear space.
     pub downscale: u32,
+    /// Per-channel gain of this photo ([`calibrate::Calibration::gains`]); linear values are divided by it.
+    pub gain: Option<[f32; 3]>,
+    /// Vignetting of this photo's camera ([`calibrate::Calibration::vignetting`]); linear values are divided by
+    /// `v(r²)` at each pixel of the original image (before undistortion), `r²` from [`calibrate::normalised_r2`].
+    pub vignetting: Option<calibrate::Vignetting>,
 }
 
 impl Default for PhotoOptions {
     fn default() -> Self {
-        Self { response: None, exposure_time: None, downscale: 1 }
+        Self { response: None, exposure_time: None, downscale: 1, gain: None, vignetting: None }
     }
+}
+
+/// Divides a linear image of the original (distorted) camera by the calibrated gain and vignetting.
+fn apply_calibration(mut img: LinearImage, camera: &Camera, opts: &PhotoOptions) -> Result<LinearImage, OpError> {
+    let gain = opts.gain.unwrap_or([1.0; 3]);
+    if gain.iter().any(|g| !(g.is_finite() && *g > 0.0)) {
+        return Err(OpError::Invalid(format!("gain must be positive and finite, got {gain:?}")));
+    }
+    if let Some(v) = &opts.vignetting
+        && v.beta.iter().any(|b| !b.is_finite())
+    {
+        return Err(OpError::Invalid(format!("vignetting coefficients must be finite, got {:?}", v.beta)));
+    }
+    if opts.gain.is_none() && opts.vignetting.is_none() {
+        return Ok(img);
+    }
+    let (w, h) = (img.width, img.height);
+    let (cx, cy) = (camera.intrinsics.cx, camera.intrinsics.cy);
+    for y in 0..h {
+        for x in 0..w {
+            let v =
+                opts.vignetting.map_or(1.0, |v| v.factor(calibrate::normalised_r2(x.into(), y.into(), cx, cy, w, h)));
+            let i = 3 * (y as usize * w as usize + x as usize);
+            for c in 0..3 {
+                img.rgb[i + c] = (f64::from(img.rgb[i + c]) / (f64::from(gain[c]) * v)) as f32;
+            }
+        }
+    }
+    Ok(img)
 }
 
 /// Reads, linearises, masks, undistorts and optionally downscales one photo taken by `camera`.
@@ -206,6 +245,8 @@ pub fn prepare_view_counted(
             linearise::linearise(&img, opts.response.as_ref(), opts.exposure_time).at(image_path)?
         }
     };
+    // Gain and vignetting act on the sensor's pixels, so before undistortion moves them.
+    let linear = apply_calibration(linear, camera, opts).at(image_path)?;
     let (camera, linear) = undistort::undistort(&linear, camera).at(image_path)?;
     let (camera, linear) = if opts.downscale > 1 {
         downscale::downscale(&linear, &camera, opts.downscale).at(image_path)?

@@ -1,0 +1,194 @@
+//! The response model of self-calibration and the choice of its exponent.
+//!
+//! `h_c(z) = ln f_c⁻¹(z)` is piecewise linear over [`KNOTS`] knots uniform in `t = √z` (z the code in [0, 1]):
+//! knots are dense at the dark end, where `ln f⁻¹` bends fastest (≈ γ ln z), and sparse near white. A
+//! second-difference penalty on the knot values keeps it smooth (Debevec & Malik's λ term), which also
+//! extrapolates it linearly over codes no observation reaches.
+//!
+//! **Exponential ambiguity.** With unknown exposures, `γ·h`, `γ·ln g`, `γ·ln v`, `γ·ln L` fit the data
+//! exactly as well as `h`, `ln g`, `ln v`, `ln L` (Grossberg & Nayar 2003): nothing in the photos alone fixes
+//! γ. The solver fixes it provisionally with a gauge, then [`choose_scale`] picks γ from two kinds of prior
+//! knowledge, measured in `docs/photo/self-calibration.md`:
+//! 1. the **shape prior**: the γ for which `h` is closest (least squares in `ln`, over mid codes) to the sRGB
+//!    curve's `ln` — right when the camera encodes roughly as sRGB, off by the ratio of log-log slopes otherwise;
+//! 2. the **exposure lattice**: cameras set exposure (shutter, aperture, ISO) in steps of ⅓ EV, so the log
+//!    exposure ratios are multiples of `ln 2 / 3`. When exactly one γ near the shape prior puts every
+//!    recovered exposure onto that lattice, it is exact whatever the curve. It needs ≥ 3 distinct exposures;
+//!    otherwise (or when several γ fit) the shape prior stands and the result is flagged unreliable.
+
+use std::f64::consts::{LN_2, PI};
+
+use crate::srgb;
+
+/// Knots of the response model per channel: 48 knots uniform in √z are ~1.5 codes apart near code 10 and
+/// ~10 codes apart near white, where every tone curve is nearly straight in `ln`.
+pub(super) const KNOTS: usize = 48;
+
+/// Knot interval and interpolation weight of code `z` ∈ [0, 1]: `h(z) = (1−w)·h[k] + w·h[k+1]`.
+pub(super) fn knot_weights(z: f64) -> (usize, f64) {
+    let t = z.clamp(0.0, 1.0).sqrt() * (KNOTS - 1) as f64;
+    let k = (t.floor() as usize).min(KNOTS - 2);
+    (k, t - k as f64)
+}
+
+/// Evaluates the knot values `h` (one channel) at code `z` ∈ [0, 1].
+pub(super) fn eval(h: &[f64], z: f64) -> f64 {
+    let (k, w) = knot_weights(z);
+    (1.0 - w) * h[k] + w * h[k + 1]
+}
+
+/// `ln` of the sRGB decoding curve, the shape prior.
+fn ln_srgb(z: f64) -> f64 {
+    f64::from(srgb::decode(z as f32)).max(f64::MIN_POSITIVE).ln()
+}
+
+/// Codes over which the shape prior compares curves: the well-exposed middle (32..=224 of 255), where every
+/// photo constrains the curve and neither quantisation (dark end) nor clipping (white end) dominates.
+const PRIOR_CODES: (u32, u32) = (32, 224);
+
+/// The factor κ that brings `κ·h` closest to `ln srgb` over [`PRIOR_CODES`], both taken relative to their
+/// mean (the curves' offsets are free); summed over the given channels' knot vectors.
+pub(super) fn shape_prior_scale(channels: &[&[f64]]) -> f64 {
+    let codes: Vec<f64> = (PRIOR_CODES.0..=PRIOR_CODES.1).map(|z| f64::from(z) / 255.0).collect();
+    let v: Vec<f64> = codes.iter().map(|&z| ln_srgb(z)).collect();
+    let v_mean = v.iter().sum::<f64>() / v.len() as f64;
+    let (mut uv, mut uu) = (0.0, 0.0);
+    for h in channels {
+        let u: Vec<f64> = codes.iter().map(|&z| eval(h, z)).collect();
+        let u_mean = u.iter().sum::<f64>() / u.len() as f64;
+        for (a, b) in u.iter().zip(&v) {
+            uv += (a - u_mean) * (b - v_mean);
+            uu += (a - u_mean) * (a - u_mean);
+        }
+    }
+    if uu > 0.0 && uv > 0.0 { uv / uu } else { 1.0 }
+}
+
+/// Difference `ln srgb(hi) − ln srgb(lo)` used as the provisional scale gauge of the solver, so that the
+/// provisional solution is already of the right magnitude.
+pub(super) fn gauge_span(lo: f64, hi: f64) -> f64 {
+    ln_srgb(hi) - ln_srgb(lo)
+}
+
+/// The exposure lattice step: ⅓ EV, the finest step of camera exposure controls.
+pub(super) const LATTICE_STEP: f64 = LN_2 / 3.0;
+/// Search window around the shape prior, as a factor either side: it covers the prior's error on the curves
+/// measured where a lattice exists (≈ 20 % filmic, ≈ 5 % gamma 2.2; docs/photo/self-calibration.md), and is
+/// narrow enough that a ⅓-EV bracket has one lattice fit in it (the next is at twice the true γ).
+const LATTICE_WINDOW: f64 = 1.3;
+/// A γ fits the lattice when `1 − |mean exp(2πi·γ·ln e_p / step)|` is below this: 0.02 allows an rms
+/// deviation of ≈ 0.03 step (`√(2·0.02)/2π`), i.e. 0.7 % in exposure, far above the estimation noise and far
+/// below a misfit (≈ 1 for exposures off the lattice).
+const LATTICE_FIT_MAX: f64 = 0.02;
+/// Grid of the γ search in `ln γ`: the misfit's minima are ≈ 1/(3·span in stops) wide in `ln γ`; 1e-4 resolves
+/// them for spans up to 30 stops before the parabolic refinement.
+const LATTICE_GRID: f64 = 1e-4;
+
+/// How γ was fixed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum GammaSource {
+    /// The response is given (`Linear`, `Srgb`): no ambiguity.
+    Given,
+    /// Exposure ratios snapped to ⅓-EV steps: reliable.
+    ExposureLattice,
+    /// Only the sRGB shape prior: the curve's exponent (and so the gains' and the vignetting's) may be off by
+    /// the ratio of the true curve's log-log slope to sRGB's.
+    ShapePrior,
+}
+
+/// The scale chosen for the provisional solution, its source, and the lattice misfit at it.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ScaleChoice {
+    pub kappa: f64,
+    pub source: GammaSource,
+    pub misfit: f64,
+}
+
+fn lattice_misfit(log_exposures: &[f64], kappa: f64) -> f64 {
+    let (mut re, mut im) = (0.0, 0.0);
+    for e in log_exposures {
+        let phase = 2.0 * PI * kappa * e / LATTICE_STEP;
+        re += phase.cos();
+        im += phase.sin();
+    }
+    1.0 - (re * re + im * im).sqrt() / log_exposures.len() as f64
+}
+
+/// Chooses κ (multiplying the provisional `h`, log gains, vignetting): the one κ within [`LATTICE_WINDOW`] of
+/// the shape prior that puts the exposures on the lattice; the shape prior itself when none or several do
+/// (`misfit` is then the lowest lattice misfit in the window).
+pub(super) fn choose_scale(prior: f64, log_exposures: &[f64]) -> ScaleChoice {
+    let fallback = ScaleChoice { kappa: prior, source: GammaSource::ShapePrior, misfit: f64::NAN };
+    // Distinct exposures: with two, some γ near any prior puts them on the lattice; three are the least that
+    // can contradict a wrong γ.
+    let mut sorted = log_exposures.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.dedup_by(|a, b| (*a - *b).abs() < 0.5 * LATTICE_STEP / LATTICE_WINDOW / prior);
+    if sorted.len() < 3 {
+        return fallback;
+    }
+    let lo = prior.ln() - LATTICE_WINDOW.ln();
+    let steps = (2.0 * LATTICE_WINDOW.ln() / LATTICE_GRID).ceil() as usize;
+    let f = |i: usize| lattice_misfit(log_exposures, (lo + i as f64 * LATTICE_GRID).exp());
+    let mut best: Option<f64> = None;
+    let mut candidates = 0;
+    let mut lowest = f64::INFINITY;
+    let (mut prev, mut cur) = (f(0), f(1));
+    for i in 1..steps {
+        let next = f(i + 1);
+        lowest = lowest.min(cur);
+        if cur <= prev && cur <= next && cur < LATTICE_FIT_MAX {
+            // Parabolic refinement of the minimum through the three grid points.
+            let denom = prev - 2.0 * cur + next;
+            let shift = if denom > 0.0 { 0.5 * (prev - next) / denom } else { 0.0 };
+            let kappa = (lo + (i as f64 + shift.clamp(-1.0, 1.0)) * LATTICE_GRID).exp();
+            candidates += 1;
+            best = Some(kappa);
+        }
+        (prev, cur) = (cur, next);
+    }
+    // Two lattice fits within the window (a bracket in whole stops fits every ⅓-multiple of the true γ) and
+    // the prior cannot tell which: refuse rather than guess.
+    match best {
+        Some(kappa) if candidates == 1 => {
+            ScaleChoice { kappa, source: GammaSource::ExposureLattice, misfit: lattice_misfit(log_exposures, kappa) }
+        }
+        _ => ScaleChoice { misfit: lowest, ..fallback },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn knots_interpolate_linearly_in_sqrt_code() {
+        let h: Vec<f64> = (0..KNOTS).map(|k| k as f64).collect();
+        for z in [0.0, 0.01, 0.3, 0.77, 1.0] {
+            assert!((eval(&h, z) - z.sqrt() * (KNOTS - 1) as f64).abs() < 1e-9, "{z}");
+        }
+    }
+
+    #[test]
+    fn lattice_recovers_the_scale_near_a_rough_prior() {
+        // Exposures in ⅓-EV steps, seen through γ = 0.8 (so the truth is κ = 1.25); the prior is 12 % off.
+        let truth: [f64; 5] = [-3.0, -1.0, 0.0, 2.0, 7.0];
+        let seen: Vec<f64> = truth.iter().map(|n| 0.8 * n * LATTICE_STEP + 0.1).collect();
+        let choice = choose_scale(1.25 * 1.12, &seen);
+        assert_eq!(choice.source, GammaSource::ExposureLattice);
+        assert!((choice.kappa - 1.25).abs() < 1e-3, "{choice:?}");
+        // Two exposures never decide.
+        assert_eq!(choose_scale(1.0, &seen[..2]).source, GammaSource::ShapePrior);
+        // Whole-stop steps fit every third of the true κ: several candidates in the window, no decision.
+        let stops: Vec<f64> = [0.0, 3.0, 6.0, 9.0, 12.0].iter().map(|n| 0.8 * n * LATTICE_STEP).collect();
+        assert_eq!(choose_scale(1.25 * 1.12, &stops).source, GammaSource::ShapePrior);
+    }
+
+    #[test]
+    fn shape_prior_of_scaled_srgb_is_the_inverse_scale() {
+        let h: Vec<f64> =
+            (0..KNOTS).map(|k| 0.5 * ln_srgb(((k as f64) / (KNOTS - 1) as f64).powi(2).max(1e-4))).collect();
+        let kappa = shape_prior_scale(&[&h]);
+        assert!((kappa - 2.0).abs() < 0.02, "{kappa}");
+    }
+}

@@ -1,0 +1,151 @@
+//! From the solver's unknowns to a [`Calibration`]: the exponent of an estimated response (see
+//! [`super::response`]), gains, vignetting, the response curve and the diagnostics.
+
+use super::model::Layout;
+use super::response::{self, GammaSource, KNOTS};
+use super::solve::{Problem, Solution};
+use super::{Calibration, CalibrationOptions, ResponseMode, Vignetting};
+use crate::photo::response::{CURVE_LEN, ResponseCurve};
+
+/// Source observation and channel of every solver row.
+pub(super) struct RowInfo {
+    pub observation: Vec<usize>,
+    pub channel: Vec<usize>,
+}
+
+/// `exp` arguments are clamped to this so that an extrapolated curve end stays a positive finite f32.
+const MAX_LN: f64 = 60.0;
+/// Below this mean squared log exposure (provisional units) the exposures hardly vary and cannot relate the
+/// channels' exponents: the shape prior does it instead.
+const MIN_EXPOSURE_VARIANCE: f64 = 1e-6;
+
+/// Relative exponent of each channel with per-channel gains: white balance does not scale with exposure, so
+/// each channel's log gains regress on green's with slope 1 once the exponents agree.
+fn channel_ratios(theta: &[f64], layout: &Layout, opts: &CalibrationOptions) -> [f64; 3] {
+    let h = |c: usize| &theta[c * KNOTS..(c + 1) * KNOTS];
+    let prior: [f64; 3] = std::array::from_fn(|c| response::shape_prior_scale(&[h(c)]));
+    let from_prior = std::array::from_fn(|c| prior[c] / prior[1]);
+    if layout.per_photo != 3 {
+        return [1.0; 3];
+    }
+    if !opts.exposure {
+        return from_prior;
+    }
+    let starts: Vec<usize> = layout.gain.iter().flatten().copied().collect();
+    let green_var = starts.iter().map(|&g| theta[g + 1].powi(2)).sum::<f64>() / starts.len() as f64;
+    if green_var < MIN_EXPOSURE_VARIANCE {
+        return from_prior;
+    }
+    std::array::from_fn(|c| {
+        let cg: f64 = starts.iter().map(|&g| theta[g + c] * theta[g + 1]).sum();
+        let cc: f64 = starts.iter().map(|&g| theta[g + c].powi(2)).sum();
+        if cc > 0.0 && cg > 0.0 { cg / cc } else { from_prior[c] }
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn finish(
+    n_groups: usize,
+    opts: &CalibrationOptions,
+    layout: &Layout,
+    problem: &Problem,
+    sol: &Solution,
+    rows: &RowInfo,
+    unconstrained: Vec<(u32, String)>,
+    clipped_channels: usize,
+    vignetting_estimated: Vec<bool>,
+) -> Calibration {
+    let theta = &sol.theta;
+    let (mut scale, mut gamma_source, mut lattice_misfit, mut curve) = ([1.0; 3], GammaSource::Given, f64::NAN, None);
+    if opts.response == ResponseMode::Estimate {
+        let rho = channel_ratios(theta, layout, opts);
+        let scaled: Vec<Vec<f64>> =
+            (0..3).map(|c| theta[c * KNOTS..(c + 1) * KNOTS].iter().map(|v| v * rho[c]).collect()).collect();
+        let prior = response::shape_prior_scale(&[&scaled[0], &scaled[1], &scaled[2]]);
+        let log_exposures: Vec<f64> = layout
+            .gain
+            .iter()
+            .flatten()
+            .map(|&g| match layout.per_photo {
+                3 => (0..3).map(|c| rho[c] * theta[g + c]).sum::<f64>() / 3.0,
+                _ => theta[g],
+            })
+            .collect();
+        let choice = if opts.exposure {
+            response::choose_scale(prior, &log_exposures)
+        } else {
+            response::ScaleChoice { kappa: prior, source: GammaSource::ShapePrior, misfit: f64::NAN }
+        };
+        scale = std::array::from_fn(|c| choice.kappa * rho[c]);
+        gamma_source = choice.source;
+        lattice_misfit = choice.misfit;
+        let mut values: Vec<[f32; 3]> = (0..CURVE_LEN)
+            .map(|z| {
+                let code = z as f64 / (CURVE_LEN - 1) as f64;
+                std::array::from_fn(|c| {
+                    let h = &theta[c * KNOTS..(c + 1) * KNOTS];
+                    (scale[c] * response::eval(h, code)).clamp(-MAX_LN, MAX_LN).exp() as f32
+                })
+            })
+            .collect();
+        // Monotone: a response never decreases; the running maximum removes wiggles of an unconstrained end.
+        for z in 1..CURVE_LEN {
+            for c in 0..3 {
+                values[z][c] = values[z][c].max(values[z - 1][c]);
+            }
+        }
+        curve = ResponseCurve::from_values(values).ok();
+    }
+    let gains = layout
+        .gain
+        .iter()
+        .map(|g| {
+            g.map(|g| {
+                std::array::from_fn(|c| match layout.per_photo {
+                    3 => (scale[c] * theta[g + c]).exp(),
+                    _ => (scale[c] * theta[g]).exp(),
+                })
+            })
+        })
+        .map(|g| g.or(if layout.per_photo == 0 { Some([1.0; 3]) } else { None }))
+        .collect::<Vec<Option<[f64; 3]>>>();
+    // Photos without gain unknowns but solved (no gains requested) keep gain 1; unconstrained stay None.
+    let unconstrained_set: Vec<u32> = unconstrained.iter().map(|u| u.0).collect();
+    let gains = gains
+        .into_iter()
+        .enumerate()
+        .map(|(p, g)| if unconstrained_set.contains(&(p as u32)) { None } else { g })
+        .collect();
+    let vignetting = (0..n_groups)
+        .map(|k| match layout.beta[k] {
+            Some(b) => Vignetting { beta: std::array::from_fn(|i| scale[1] * theta[b + i]) },
+            None => Vignetting::none(),
+        })
+        .collect();
+    let (mut se, mut sw) = (0.0, 0.0);
+    let mut used = vec![false; rows.observation.iter().max().map_or(0, |&m| m + 1)];
+    let mut rejected_channels = 0;
+    for j in 0..problem.rows.len() {
+        if sol.robust[j] > 0.0 {
+            se += sol.robust[j] * (scale[rows.channel[j]] * sol.residual[j]).powi(2);
+            sw += sol.robust[j];
+            used[rows.observation[j]] = true;
+        } else {
+            rejected_channels += 1;
+        }
+    }
+    Calibration {
+        gains,
+        unconstrained,
+        vignetting,
+        vignetting_estimated,
+        response: curve,
+        gamma_source,
+        gamma_reliable: gamma_source != GammaSource::ShapePrior,
+        lattice_misfit,
+        residual_rms: if sw > 0.0 { (se / sw).sqrt() } else { 0.0 },
+        used_observations: used.iter().filter(|&&u| u).count(),
+        clipped_channels,
+        rejected_channels,
+    }
+}

@@ -1,0 +1,102 @@
+//! Self-calibration of Debevec's Memorial bracket from the photos alone, checked against the listed shutter
+//! times and against OpenCV's `CalibrateDebevec` given those times. Skips (with a message) when the data set
+//! is not at `<repo>/../shared/data/debevec-memorial`.
+
+use std::path::PathBuf;
+
+use ingest::photo::calibrate::{CalibrationOptions, GammaSource, ResponseMode, calibrate_bracket};
+use ingest::photo::response::bracket;
+use ingest::photo::{DecodedImage, read_image, recover_response};
+
+fn data_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/debevec-memorial")
+}
+
+/// Exposure times in seconds from `memorial.hdr_image_list.txt` (its second column is 1/shutter time).
+fn exposure_times(dir: &std::path::Path) -> Vec<(String, f64)> {
+    let text = std::fs::read_to_string(dir.join("memorial.hdr_image_list.txt")).unwrap();
+    text.lines()
+        .filter(|l| l.starts_with("memorial"))
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            (f[0].replace(".ppm", ".png"), 1.0 / f[1].parse::<f64>().unwrap())
+        })
+        .collect()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+#[test]
+fn memorial_exposures_and_response_from_the_photos_alone() {
+    let dir = data_dir();
+    if !dir.join("memorial0061.png").exists() {
+        println!("skipped: Memorial bracket not found at {}", dir.display());
+        return;
+    }
+    let listed = exposure_times(&dir);
+    assert_eq!(listed.len(), 16);
+    let paths: Vec<PathBuf> = listed.iter().map(|(name, _)| dir.join(name)).collect();
+    let times: Vec<f64> = listed.iter().map(|(_, t)| *t).collect();
+    let images: Vec<_> = paths
+        .iter()
+        .map(|p| match read_image(p).unwrap() {
+            DecodedImage::Display(d) => d,
+            DecodedImage::Linear(_) => panic!("{} is not display-referred", p.display()),
+        })
+        .collect();
+    let opts = CalibrationOptions {
+        response: ResponseMode::Estimate,
+        exposure: true,
+        white_balance: false,
+        vignetting: false,
+        seed: 7,
+    };
+    let cal = calibrate_bracket(&images, &opts).unwrap();
+    println!(
+        "memorial: {:?} (misfit {:.4}), rms {:.4}, used {}, clipped {}, rejected {}, unconstrained {:?}",
+        cal.gamma_source,
+        cal.lattice_misfit,
+        cal.residual_rms,
+        cal.used_observations,
+        cal.clipped_channels,
+        cal.rejected_channels,
+        cal.unconstrained
+    );
+    let gains: Vec<f64> = cal.gains.iter().map(|g| g.expect("every photo is constrained")[1]).collect();
+    let mut worst_ratio = 0.0f64;
+    for p in 0..15 {
+        let ratio = (gains[p + 1] / gains[p]) / (times[p + 1] / times[p]);
+        println!("  photos {p:2}->{:2}: recovered/listed exposure ratio {ratio:.4}", p + 1);
+        worst_ratio = worst_ratio.max((ratio - 1.0).abs());
+    }
+
+    let opencv = recover_response(&bracket(&paths, &times)).unwrap();
+    let ours = cal.response.as_ref().unwrap();
+    let compare = |lo: usize, hi: usize| {
+        let mut errors = Vec::new();
+        for c in 0..3 {
+            for z in lo..=hi {
+                let a = f64::from(ours.values()[z][c]) / f64::from(ours.values()[128][c]);
+                let b = f64::from(opencv.values()[z][c]) / f64::from(opencv.values()[128][c]);
+                errors.push((a / b).ln().abs());
+            }
+        }
+        (median(errors.clone()), errors.iter().copied().fold(0.0, f64::max))
+    };
+    let (med, max) = compare(3, 249);
+    let (med_mid, max_mid) = compare(16, 240);
+    println!("  worst exposure-ratio error {worst_ratio:.4}");
+    println!("  response vs OpenCV: median |ln| {med:.4} (max {max:.3}) over codes 3..=249");
+    println!("  response vs OpenCV: median |ln| {med_mid:.4} (max {max_mid:.3}) over codes 16..=240");
+    // Measured (docs/photo/self-calibration.md): the recovered steps vary by ±15 % around ×1.8 instead of
+    // ×2, so no ⅓-EV lattice fits them and the exponent rests on the shape prior — which the result must
+    // say. The brief's targets (ratios within 5 %, response within 0.05) are not reached; these bounds pin
+    // what is, so that a regression shows.
+    assert_eq!(cal.gamma_source, GammaSource::ShapePrior);
+    assert!(!cal.gamma_reliable);
+    assert!(worst_ratio < 0.4, "{worst_ratio}");
+    assert!(med_mid < 0.15, "{med_mid}");
+}
