@@ -230,14 +230,17 @@ fn estimate(seed: u64, f: fn(f64) -> f64, lattice: bool) -> (Calibration, f64, f
 #[test]
 fn estimated_response_on_curves_not_tuned_on() {
     // ⅓-EV exposures: the exposure lattice fixes the exponent whatever the curve's shape.
-    let curves: [(&str, Curve); 2] = [("filmic", filmic), ("gamma 2.2", gamma22)];
-    for (name, f) in curves {
-        let (cal, g, r) = estimate(21, f, true);
+    let curves: [(&str, Curve, u64); 3] = [("filmic", filmic, 21), ("gamma 2.2", gamma22, 21), ("film", film, 22)];
+    for (name, f, seed) in curves {
+        let (cal, g, r) = estimate(seed, f, true);
         println!(
             "{name:10} lattice exposures: worst gain error {g:.4}, response |ln| {r:.4}, {:?} (misfit {:.4}), rms {:.4}",
             cal.gamma_source, cal.lattice_misfit, cal.residual_rms
         );
-        assert_eq!(cal.gamma_source, GammaSource::ExposureLattice, "{name}");
+        // The film curve is too far from sRGB for a ⅓-EV lattice fit within the prior's window, but its
+        // exposures lie on a common step that the prior puts at ⅓ EV (the next candidate is twice as far).
+        let source = if name == "film" { GammaSource::BracketSteps } else { GammaSource::ExposureLattice };
+        assert_eq!(cal.gamma_source, source, "{name}");
         assert!(cal.gamma_reliable);
         assert!(g < 0.02, "{name}: {g}");
         assert!(r < 0.05, "{name}: {r}");
@@ -246,10 +249,10 @@ fn estimated_response_on_curves_not_tuned_on() {
 
 #[test]
 fn unfixable_exponent_is_flagged() {
-    // Continuous exposures (no lattice) leave only the shape prior; a film curve with a linear toe is far from
-    // sRGB, so no lattice fit lies near the prior. Either way the result must say it is unreliable.
-    let cases: [(&str, Curve, bool); 4] =
-        [("filmic", filmic, false), ("gamma 2.2", gamma22, false), ("film", film, false), ("film", film, true)];
+    // Continuous exposures (no lattice, no common step) leave only the shape prior. The result must say it is
+    // unreliable.
+    let cases: [(&str, Curve, bool); 3] =
+        [("filmic", filmic, false), ("gamma 2.2", gamma22, false), ("film", film, false)];
     for (name, f, lattice) in cases {
         let (cal, g, r) = estimate(22, f, lattice);
         println!(

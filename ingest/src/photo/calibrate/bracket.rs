@@ -17,6 +17,32 @@ const SAMPLES_PER_PHOTO: usize = 400;
 /// where the response is fitted (see `model::START_CODES`).
 const WELL_EXPOSED: (f64, f64) = (40.0 / 255.0, 216.0 / 255.0);
 
+/// Of each photo's well-exposed pixels, the smoothest tenth (by [`roughness`]) are sampled. The photos of a
+/// bracket may be registered by hand (or by a homography fitted to features) to within a pixel or so; at an
+/// edge that turns into errors of many codes that do not average out (the same edge is mis-registered the same
+/// way in every pair) and bias the exposure ratios of the photos that are well exposed only on a few bright,
+/// edged objects. A fraction rather than a code threshold adapts to the scene's texture; a tenth still leaves
+/// thousands of candidates per photo at 0.4 megapixels (on the Memorial bracket, the quarter and the half
+/// gave worse ratios: docs/photo/self-calibration.md).
+const SMOOTH_FRACTION: f64 = 0.1;
+
+/// Largest code difference, over channels, between pixel `i` and its 3×3 neighbours.
+fn roughness(img: &DisplayImage, i: usize) -> u16 {
+    let w = img.width as usize;
+    let h = img.height as usize;
+    let (x, y) = (i % w, i / w);
+    let mut m = 0u16;
+    for yy in y.saturating_sub(1)..(y + 2).min(h) {
+        for xx in x.saturating_sub(1)..(x + 2).min(w) {
+            let j = yy * w + xx;
+            for c in 0..3 {
+                m = m.max(img.codes[3 * j + c].abs_diff(img.codes[3 * i + c]));
+            }
+        }
+    }
+    m
+}
+
 /// SplitMix64 (Steele, Lea & Flood 2014): a tiny, well-mixed seeded generator.
 struct SplitMix64(u64);
 
@@ -57,14 +83,18 @@ pub fn calibrate_bracket(images: &[DisplayImage], opts: &CalibrationOptions) -> 
         (0..SAMPLES.min(pixels)).map(|_| (rng.next_u64() % pixels as u64) as usize).collect();
     for img in images {
         let max = f64::from(img.max_code.max(1));
-        let well: Vec<usize> = (0..pixels)
+        let mut well: Vec<(u16, usize)> = (0..pixels)
             .filter(|&i| {
                 img.mask[i] != 0
                     && img.codes[3 * i..3 * i + 3]
                         .iter()
                         .all(|&z| (WELL_EXPOSED.0..=WELL_EXPOSED.1).contains(&(f64::from(z) / max)))
             })
+            .map(|i| (roughness(img, i), i))
             .collect();
+        well.sort_unstable();
+        let keep = ((well.len() as f64 * SMOOTH_FRACTION).ceil() as usize).min(well.len());
+        let well: Vec<usize> = well[..keep].iter().map(|w| w.1).collect();
         if !well.is_empty() {
             positions.extend((0..SAMPLES_PER_PHOTO).map(|_| well[(rng.next_u64() % well.len() as u64) as usize]));
         }

@@ -259,12 +259,20 @@ pub(super) fn run(
     };
     let n_scale = add_gauges(&mut problem, &layout, opts, total_w);
     gauge_on_shape(&mut problem, &layout, n_scale)?;
-    let sol = solve::solve(&problem).ok_or(CalibrateError::Singular)?;
+    let mut sol = solve::solve(&problem).ok_or(CalibrateError::Singular)?;
+    let mut chosen = None;
+    if mode == ResponseMode::Estimate && layout.per_photo == 1 {
+        if let Some((choice, snapped)) = snap_exposures(&sol.theta, &layout) {
+            refit_with_exposures(&mut problem, &layout, &snapped);
+            sol = solve::solve(&problem).ok_or(CalibrateError::Singular)?;
+            chosen = Some(choice);
+        }
+    }
     let rows = RowInfo {
         observation: row_cell.iter().map(|&j| cells[j].0).collect(),
         channel: row_cell.iter().map(|&j| cells[j].1 as usize).collect(),
     };
-    Ok(finish(n_groups, opts, &layout, &problem, &sol, &rows, unconstrained, clipped_channels, estimated))
+    Ok(finish(n_groups, opts, &layout, &problem, &sol, &rows, unconstrained, clipped_channels, estimated, chosen))
 }
 
 /// Adds the gauge constraints and the response's smoothness; returns how many of the constraints (the last
@@ -365,4 +373,36 @@ fn gauge_on_shape(problem: &mut Problem, layout: &Layout, n_scale: usize) -> Res
     problem.constraints.truncate(problem.constraints.len() - n_scale);
     problem.constraints.extend(gauges);
     Ok(())
+}
+
+/// Exposures of the provisional solution snapped to a lattice (exposure-only gains): the ⅓-EV lattice when
+/// exactly one exponent near the shape prior fits it, else the bracket's own step. Returns the exponent choice
+/// and the snapped log exposures per solved photo (provisional units), or `None` when neither lattice fits.
+fn snap_exposures(theta: &[f64], layout: &Layout) -> Option<(response::ScaleChoice, Vec<f64>)> {
+    let h: Vec<&[f64]> = (0..3).map(|c| &theta[c * KNOTS..(c + 1) * KNOTS]).collect();
+    let prior = response::shape_prior_scale(&h);
+    let x: Vec<f64> = layout.gain.iter().flatten().map(|&g| theta[g]).collect();
+    let choice = response::choose_scale(prior, &x);
+    if choice.source == response::GammaSource::ExposureLattice {
+        return Some((choice, response::snap_to_lattice(choice.kappa, &x)));
+    }
+    let fit = response::fit_bracket_steps(prior, &x)?;
+    let choice = response::ScaleChoice {
+        kappa: fit.kappa,
+        source: response::GammaSource::BracketSteps,
+        misfit: fit.misfit,
+        reliable: fit.thirds == 1,
+    };
+    Some((choice, fit.snapped))
+}
+
+/// Turns `problem` into a fit of the response alone with the gains fixed to `snapped` (centred): the
+/// exponential ambiguity is gone, so the exponent gauge and the gains' mean gauge are dropped.
+fn refit_with_exposures(problem: &mut Problem, layout: &Layout, snapped: &[f64]) {
+    let mean = snapped.iter().sum::<f64>() / snapped.len().max(1) as f64;
+    let gains: Vec<usize> = layout.gain.iter().flatten().copied().collect();
+    problem.constraints.retain(|c| c.entries.iter().all(|e| e.0 < 3 * KNOTS) && c.entries.len() <= 2);
+    for (&g, &x) in gains.iter().zip(snapped) {
+        problem.constraints.push(Constraint { entries: vec![(g, 1.0)], target: x - mean });
+    }
 }

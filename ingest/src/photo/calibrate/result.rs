@@ -54,9 +54,11 @@ pub(super) fn finish(
     unconstrained: Vec<(u32, String)>,
     clipped_channels: usize,
     vignetting_estimated: Vec<bool>,
+    chosen: Option<response::ScaleChoice>,
 ) -> Calibration {
     let theta = &sol.theta;
     let (mut scale, mut gamma_source, mut lattice_misfit, mut curve) = ([1.0; 3], GammaSource::Given, f64::NAN, None);
+    let mut gamma_reliable = true;
     if opts.response == ResponseMode::Estimate {
         let rho = channel_ratios(theta, layout, opts);
         let scaled: Vec<Vec<f64>> =
@@ -71,11 +73,14 @@ pub(super) fn finish(
                 _ => theta[g],
             })
             .collect();
-        let choice = if opts.exposure {
+        let choice = if let Some(choice) = chosen {
+            choice
+        } else if opts.exposure {
             response::choose_scale(prior, &log_exposures)
         } else {
-            response::ScaleChoice { kappa: prior, source: GammaSource::ShapePrior, misfit: f64::NAN }
+            response::ScaleChoice { kappa: prior, source: GammaSource::ShapePrior, misfit: f64::NAN, reliable: false }
         };
+        gamma_reliable = choice.reliable;
         scale = std::array::from_fn(|c| choice.kappa * rho[c]);
         gamma_source = choice.source;
         lattice_misfit = choice.misfit;
@@ -141,7 +146,7 @@ pub(super) fn finish(
         vignetting_estimated,
         response: curve,
         gamma_source,
-        gamma_reliable: gamma_source != GammaSource::ShapePrior,
+        gamma_reliable,
         lattice_misfit,
         residual_rms: if sw > 0.0 { (se / sw).sqrt() } else { 0.0 },
         used_observations: used.iter().filter(|&&u| u).count(),
