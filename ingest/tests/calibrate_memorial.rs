@@ -87,17 +87,7 @@ fn memorial_exposures_and_response_from_the_photos_alone() {
         (median(errors.clone()), errors.iter().copied().fold(0.0, f64::max))
     };
     for (lo, hi) in [(3, 15), (16, 31), (32, 63), (64, 127), (128, 191), (192, 249)] {
-        println!("  codes {lo}..={hi}: {:?}", compare(lo, hi));
-    }
-    for c in 0..3 {
-        let e: Vec<f64> = (3..=249)
-            .map(|z| {
-                let a = f64::from(ours.values()[z][c]) / f64::from(ours.values()[128][c]);
-                let b = f64::from(opencv.values()[z][c]) / f64::from(opencv.values()[128][c]);
-                (a / b).ln().abs()
-            })
-            .collect();
-        println!("  channel {c}: {:.4}", median(e));
+        println!("  response vs OpenCV, codes {lo}..={hi}: median |ln| {:.4}", compare(lo, hi).0);
     }
     let (med, max) = compare(3, 249);
     let (med_mid, max_mid) = compare(16, 240);
@@ -105,8 +95,11 @@ fn memorial_exposures_and_response_from_the_photos_alone() {
     println!("  response vs OpenCV: median |ln| {med:.4} (max {max:.3}) over codes 3..=249");
     println!("  response vs OpenCV: median |ln| {med_mid:.4} (max {max_mid:.3}) over codes 16..=240");
     // Measured (docs/photo/self-calibration.md): the recovered exposures lie within 0.15 of a step of a
-    // one-stop lattice, which fixes the ratios; the exponent then rests on the shape prior's choice among
-    // multiples of ⅓ EV, so it is not called reliable.
+    // one-stop lattice, so the ratios snap to the listed ×2; the exponent rests on the shape prior's choice
+    // among multiples of ⅓ EV, so it is not called reliable. Target (a), ratios within 5 %, is asserted.
+    // Target (b), response within a median |ln| of 0.05 of OpenCV, is not reached (0.054): OpenCV's own curve
+    // from other samples of the same photos and times differs from this reference by 0.047–0.064, so the bound
+    // pins what is reached at that noise floor.
     assert_eq!(cal.gamma_source, GammaSource::BracketSteps);
     assert!(!cal.gamma_reliable);
     assert!(worst_ratio < 0.05, "{worst_ratio}");

@@ -57,7 +57,7 @@ impl SplitMix64 {
 }
 
 /// Calibrates an aligned bracket (≥ 2 images of equal size): samples pixel positions with `opts.seed` ([`SAMPLES`]
-/// uniformly, [`SAMPLES_PER_PHOTO`] among each photo's well-exposed pixels) and calls [`calibrate`] with one camera
+/// uniformly, [`SAMPLES_PER_PHOTO`] among the smoothest [`SMOOTH_FRACTION`] of each photo's well-exposed pixels) and calls [`calibrate`] with one camera
 /// group and `vignetting` off. Pixels invalid (alpha 0) in an image are left out of that image.
 pub fn calibrate_bracket(images: &[DisplayImage], opts: &CalibrationOptions) -> Result<Calibration, CalibrateError> {
     let Some(first) = images.first() else {

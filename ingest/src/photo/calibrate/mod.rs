@@ -15,7 +15,9 @@
 //! response is normalised like [`crate::photo::recover_response`]'s: `curve(128) = 1` per channel (a mid
 //! code that every photo set observes; code 255 is clipped and carries no data). The exponent of an estimated
 //! response is not determined by the photos alone (exponential ambiguity): [`Calibration::gamma_source`] says
-//! how it was fixed and [`Calibration::gamma_reliable`] whether that is trustworthy. Measurements and the
+//! how it was fixed and [`Calibration::gamma_reliable`] whether that is trustworthy. When the exposures lie on
+//! a lattice (⅓ EV, or the bracket's own step), they are snapped to it and the response is refitted with them
+//! fixed (`model`). Measurements and the
 //! choices they led to: `docs/photo/self-calibration.md`.
 //!
 //! [`calibrate_bracket`] (`bracket`) is the front end for an aligned exposure bracket.
@@ -116,10 +118,12 @@ pub struct Calibration {
     pub response: Option<ResponseCurve>,
     /// How the response's exponent (and with it the scale of every log gain and of the vignetting) was fixed.
     pub gamma_source: GammaSource,
-    /// False when only the shape prior fixed the exponent: gains, vignetting and curve may then all be off by a
-    /// common power (see [`response`]).
+    /// False when the shape prior decided the exponent — alone, or by choosing the size in ⅓ EV of a bracket's
+    /// step larger than ⅓ EV: gains, vignetting and curve may then all be off by a common power (see
+    /// [`response`]).
     pub gamma_reliable: bool,
-    /// Exposure-lattice misfit at the chosen exponent (0 = exact; NaN when the lattice was not used).
+    /// Lattice misfit at the chosen exponent (0 = exact; NaN when no lattice was used): `1 − |mean phase|`
+    /// for [`GammaSource::ExposureLattice`], the largest deviation in steps for [`GammaSource::BracketSteps`].
     pub lattice_misfit: f64,
     /// Root mean square of the residuals of `ln` radiance over rows kept by the robust weights (IRLS weight
     /// > 0), in natural-log units.
