@@ -78,6 +78,9 @@ pub mod key {
     pub const SELECT_PIXEL_ROWS: u64 = SELECT + (5 << 20);
     /// Model selection: the averaged steps of the emission refit.
     pub const SELECT_EMISSION_REFIT: u64 = SELECT + (6 << 20);
+    /// Tone-curve exponent check after a fit ([`crate::photometric`]): its first render at `EXPONENT + round`,
+    /// the second, independent one at `EXPONENT + round` XOR [`SECOND_ESTIMATE`].
+    pub const EXPONENT: u64 = SELECT + (7 << 20);
     /// XORed into a solve's key for its second, independent Jacobian estimate (instrumental variables).
     pub const SECOND_ESTIMATE: u64 = 1 << 31;
     /// XORed into a roughness-profile point's key for its Jacobian (the value and its slope must not share

@@ -83,14 +83,18 @@ pub fn vignetting(corner: f64, r2: f64) -> f64 {
     (1.0 + vignetting_a(corner) * r2).powi(-2)
 }
 
-/// r² of pixel (x, y) of `cam`: squared distance from the principal point over that of the farthest image
-/// corner (the pixel edges, at −0.5 and width − 0.5 in the pixel-centre convention).
+/// r² of pixel (x, y) of `cam`: `ingest::photo::calibrate::normalised_r2`, the workspace's one definition
+/// (squared distance from the principal point over that of the farthest outer image corner).
 #[must_use]
 pub fn normalised_r2(cam: &tracer::Camera, x: u32, y: u32) -> f64 {
-    let (cx, cy) = (f64::from(cam.cx), f64::from(cam.cy));
-    let far = |c: f64, size: u32| (c + 0.5).max(f64::from(size) - 0.5 - c);
-    let corner2 = far(cx, cam.width).powi(2) + far(cy, cam.height).powi(2);
-    ((f64::from(x) - cx).powi(2) + (f64::from(y) - cy).powi(2)) / corner2
+    ingest::photo::calibrate::normalised_r2(
+        f64::from(x),
+        f64::from(y),
+        f64::from(cam.cx),
+        f64::from(cam.cy),
+        cam.width,
+        cam.height,
+    )
 }
 
 /// What the pipeline drew for one photo.

@@ -1,9 +1,14 @@
 //! The `object` stage's artefacts and their readers (`crate::stages::object` writes them).
+//!
+//! `photometric.json` (`ipt-photometric/1`, only when the photos' tone-curve exponent was left open by their
+//! calibration): the per-channel exponent the stage measured against its renders and applied to the prepared
+//! photos; every later stage reads the photos through [`read_prepared`], which applies it too.
 
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use super::preprocess::Prepared;
 use crate::materials::MaterialsFile;
 use crate::stage_contract::StageError;
 
@@ -14,6 +19,10 @@ pub const MATERIALS_FILE: &str = "materials.json";
 pub const HISTORY_FILE: &str = "history.json";
 /// Format tag of `checkpoint.json`.
 pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/1";
+/// The measured tone-curve exponent's file name.
+pub const PHOTOMETRIC_FILE: &str = "photometric.json";
+/// Format tag of `photometric.json`.
+pub const PHOTOMETRIC_FORMAT: &str = "ipt-photometric/1";
 /// Format tag of `history.json`.
 pub const HISTORY_FORMAT: &str = "ipt-object-history/1";
 
@@ -50,4 +59,55 @@ pub fn read_history(run_dir: &Path) -> Result<HistoryFile, StageError> {
     let path = run_dir.join("object").join(HISTORY_FILE);
     let text = std::fs::read_to_string(&path).map_err(|source| StageError::Io { path: path.clone(), source })?;
     serde_json::from_str(&text).map_err(|e| StageError::Artefact { path, message: e.to_string() })
+}
+
+/// `photometric.json`: the exponent applied to the prepared photos' linear values, per channel, and each
+/// measurement that led to it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhotometricFile {
+    pub format: String,
+    /// Applied as `value^exponent[c]` to every prepared photo.
+    pub exponent: [f64; 3],
+    /// One entry per trial fit, in the order tried.
+    pub rounds: Vec<ExponentRound>,
+}
+
+/// One trial of the exponent search.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExponentRound {
+    /// The exponent the fit's photos were raised to.
+    pub exponent: f64,
+    /// Its held-out log misfit in the photos' original log units (`optim::photometric`).
+    pub misfit: f64,
+    pub terms: usize,
+}
+
+/// Reads `run_dir/object/photometric.json`; `None` when the stage did not measure an exponent.
+pub fn read_photometric(run_dir: &Path) -> Result<Option<PhotometricFile>, StageError> {
+    let path = run_dir.join("object").join(PHOTOMETRIC_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path).map_err(|source| StageError::Io { path: path.clone(), source })?;
+    let file: PhotometricFile =
+        serde_json::from_str(&text).map_err(|e| StageError::Artefact { path: path.clone(), message: e.to_string() })?;
+    if file.format != PHOTOMETRIC_FORMAT || !file.exponent.iter().all(|e| e.is_finite() && *e > 0.0) {
+        return Err(StageError::Artefact {
+            path,
+            message: format!("not `{PHOTOMETRIC_FORMAT}` with positive finite exponents"),
+        });
+    }
+    Ok(Some(file))
+}
+
+/// The prepared photos as the stages after `object` use them: with the exponent of `photometric.json`
+/// applied when there is one.
+pub fn read_prepared(run_dir: &Path) -> Result<Prepared, StageError> {
+    let mut prepared = Prepared::read(run_dir)?;
+    if let Some(p) = read_photometric(run_dir)? {
+        prepared.apply_exponent(p.exponent);
+    }
+    Ok(prepared)
 }

@@ -39,8 +39,12 @@ pub struct CalibrationFile {
     pub views: Vec<CalibratedView>,
     pub cameras: Vec<CameraVignetting>,
     /// The estimated response, 256 RGB entries (code → relative exposure), each channel scaled to 1 at code
-    /// 255; `None` unless estimated.
+    /// 128; `None` unless estimated.
     pub response: Option<Vec<[f32; 3]>>,
+    /// How the response's exponent was fixed (`Given`, `ExposureLattice`, `ShapePrior`), and whether the photos
+    /// alone fixed it reliably; when not, the object stage measures it against its renders.
+    pub exponent_source: String,
+    pub exponent_reliable: bool,
 }
 
 /// One view's estimate.
@@ -98,10 +102,7 @@ impl CalibrationFile {
                 profile: (0..=10).map(|k| v.factor((f64::from(k) / 10.0).powi(2))).collect(),
             })
             .collect();
-        let response = cal.response.as_ref().map(|r| {
-            let white = r.values()[r.values().len() - 1];
-            r.values().iter().map(|v| [0, 1, 2].map(|c| v[c] / white[c])).collect()
-        });
+        let response = cal.response.as_ref().map(|r| r.values().to_vec());
         Self {
             format: CALIBRATION_FORMAT.into(),
             response_mode: match opts.response {
@@ -120,6 +121,8 @@ impl CalibrationFile {
             views,
             cameras,
             response,
+            exponent_source: format!("{:?}", cal.gamma_source),
+            exponent_reliable: cal.gamma_reliable,
         }
     }
 
@@ -140,7 +143,11 @@ impl CalibrationFile {
             self.residual_rms,
             if corners.is_empty() { "none".to_owned() } else { corners.join(" / ") },
             self.response_mode
-        )
+        ) + if self.exponent_reliable {
+            ""
+        } else {
+            " (its exponent is not fixed by the photos alone: the object stage measures it against its renders)"
+        }
     }
 
     /// Reads `run_dir/preprocess/calibration.json`; `None` when the run did not calibrate.
@@ -199,6 +206,22 @@ impl Prepared {
             .collect::<Result<_, _>>()?;
         let (cameras, images) = loaded.into_iter().unzip();
         Ok(Self { names: list.views, cameras, images })
+    }
+
+    /// Raises every photo's linear values to `exponent[c]` per channel (masked pixels untouched): the
+    /// correction of a tone curve known only up to a power.
+    pub fn apply_exponent(&mut self, exponent: [f64; 3]) {
+        if exponent == [1.0; 3] {
+            return;
+        }
+        let e = exponent.map(|x| x as f32);
+        self.images.par_iter_mut().for_each(|img| {
+            for px in img.rgb.chunks_exact_mut(3) {
+                for (v, e) in px.iter_mut().zip(e) {
+                    *v = if *v > 0.0 { v.powf(e) } else { *v };
+                }
+            }
+        });
     }
 
     /// The prepared cameras as the tracer's.

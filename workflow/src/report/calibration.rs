@@ -53,8 +53,10 @@ pub fn section(c: &CalibrationFile) -> String {
         let channel = |k: usize| -> Vec<(f64, f64)> {
             r.iter().enumerate().skip(1).map(|(z, v)| (z as f64 / n, f64::from(v[k]))).collect()
         };
+        // sRGB scaled like the estimate (1 at code 128), so that the shapes compare.
+        let mid = f64::from(ingest::srgb::decode(128.0 / n as f32));
         let srgb: Vec<(f64, f64)> =
-            (1..r.len()).map(|z| (z as f64 / n, f64::from(ingest::srgb::decode(z as f32 / n as f32)))).collect();
+            (1..r.len()).map(|z| (z as f64 / n, f64::from(ingest::srgb::decode(z as f32 / n as f32)) / mid)).collect();
         let (red, green, blue) = (channel(0), channel(1), channel(2));
         let curves = [
             Curve { name: "estimated R", points: &red },
@@ -64,7 +66,7 @@ pub fn section(c: &CalibrationFile) -> String {
         ];
         let _ = writeln!(
             s,
-            "<figure><figcaption>Inverse response: code value → relative exposure (1 at code 255), log scale\
+            "<figure><figcaption>Inverse response: code value → relative exposure (1 at code 128), log scale\
              </figcaption>{}</figure>",
             line_chart(&curves, 560, 260, "code / max", "exposure")
         );
@@ -75,7 +77,10 @@ pub fn section(c: &CalibrationFile) -> String {
             .iter()
             .map(|cam| {
                 let n = (cam.profile.len().max(2) - 1) as f64;
-                (format!("camera {}", cam.camera), cam.profile.iter().enumerate().map(|(k, &v)| (k as f64 / n, v)).collect())
+                (
+                    format!("camera {}", cam.camera),
+                    cam.profile.iter().enumerate().map(|(k, &v)| (k as f64 / n, v)).collect(),
+                )
             })
             .collect();
         let curves: Vec<Curve<'_>> = profiles.iter().map(|(n, p)| Curve { name: n, points: p }).collect();
@@ -113,8 +118,15 @@ mod tests {
                 CalibratedView { name: "a<b".into(), camera: 0, gain: Some([0.5, 0.5, 0.5]), left_out: None },
                 CalibratedView { name: "c".into(), camera: 1, gain: None, left_out: Some("all clipped".into()) },
             ],
-            cameras: vec![CameraVignetting { camera: 0, beta: [-0.5, 0.0, 0.0], corner: 0.61, profile: vec![1.0, 0.8, 0.61] }],
+            cameras: vec![CameraVignetting {
+                camera: 0,
+                beta: [-0.5, 0.0, 0.0],
+                corner: 0.61,
+                profile: vec![1.0, 0.8, 0.61],
+            }],
             response: response.then(|| (0..256).map(|z| [(z as f32 / 255.0).powf(2.0); 3]).collect()),
+            exponent_source: "ShapePrior".into(),
+            exponent_reliable: !response,
         }
     }
 

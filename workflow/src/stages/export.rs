@@ -17,7 +17,6 @@ use std::path::PathBuf;
 
 use crate::artefacts::ingest::Ingested;
 use crate::artefacts::object::{MATERIALS_FILE, read_history, read_result};
-use crate::artefacts::preprocess::Prepared;
 use crate::artefacts::triangle;
 use crate::atomic_file::{write_atomic, write_json_atomic};
 use crate::config::profile_name;
@@ -263,7 +262,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     write_json_atomic(&plan.output.join("materials.json"), &materials)?;
 
     let scene_data = Ingested::read(&plan.output)?;
-    let prepared = Prepared::read(&plan.output)?;
+    let prepared = crate::artefacts::object::read_prepared(&plan.output)?;
     let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
     let table = history_table(&history.history, &ids);
     write_atomic(&ctx.dir.join(TRAJECTORIES_FILE), to_csv(&table).as_bytes())?;

@@ -1,5 +1,9 @@
 //! The `object` stage: per-object material and emission fit ([`optim::fit::fit_objects`]) on the ingested
-//! mesh and the prepared photos, with checkpoints so an interrupted run resumes where it stopped.
+//! mesh and the prepared photos, with checkpoints so an interrupted run resumes where it stopped. When the
+//! photos' calibration left the tone curve's exponent open, the fit is followed by a measurement of that exponent
+//! against its renders (`optim::photometric`): fits of the photos raised to a few exponents are compared by
+//! their held-out log misfit, the search settles on the best, and the final fit uses it; the exponent goes to
+//! `photometric.json` for the later stages.
 //!
 //! Artefacts in `output.path/object/`:
 //! - `materials.json` — the result in the `ipt-materials/1` schema ([`crate::materials`]);
@@ -15,13 +19,20 @@ use std::path::PathBuf;
 
 use crate::artefacts::checkpoint;
 use crate::artefacts::ingest::Ingested;
-use crate::artefacts::object::{CHECKPOINT_FORMAT, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE};
-use crate::artefacts::preprocess::Prepared;
+use crate::artefacts::object::{
+    CHECKPOINT_FORMAT, ExponentRound, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE, PHOTOMETRIC_FILE,
+    PHOTOMETRIC_FORMAT, PhotometricFile,
+};
+use crate::artefacts::preprocess::{CalibrationFile, Prepared};
 use crate::atomic_file::write_json_atomic;
 use crate::config::profile_name;
 use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
 use crate::stage_contract::{StageContext, StageError};
 use optim::fit::{FitError, FitInputs, FitState, ObjectDesc};
+use optim::photometric::NextExponent;
+
+/// The exponent is judged on held-out pixels; a config with no held-out pixels still gets this share.
+const EXPONENT_HOLDOUT_FRACTION: f64 = 0.1;
 
 /// Runs the stage.
 pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
@@ -39,26 +50,89 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         .map(|(i, (o, t))| ObjectDesc { id: o.id, label: scene_data.label(i), triangles: t.clone() })
         .collect();
     let settings = plan.tracer.settings();
-    let inputs = FitInputs {
-        scene: &scene,
-        cameras: &cameras,
-        images: &prepared.images,
-        objects: &objects,
-        settings: &plan.object,
-        tracer: &settings,
+    let calibration = CalibrationFile::read(&plan.output)?;
+    // The photos' calibration may leave the tone curve's exponent open; linear light transport then decides it.
+    let search = calibration.as_ref().is_some_and(|c| !c.exponent_reliable);
+    let mut exponent = 1.0f64;
+    let mut rounds: Vec<ExponentRound> = Vec::new();
+    let mut last_try = true;
+    let outcome = loop {
+        let mut corrected = Prepared { names: Vec::new(), cameras: Vec::new(), images: Vec::new() };
+        let images = if exponent == 1.0 {
+            &prepared.images
+        } else {
+            corrected.images = prepared.images.clone();
+            corrected.apply_exponent([exponent; 3]);
+            &corrected.images
+        };
+        let inputs = FitInputs {
+            scene: &scene,
+            cameras: &cameras,
+            images,
+            objects: &objects,
+            settings: &plan.object,
+            tracer: &settings,
+        };
+        // Only the first fit checkpoints: later ones fit re-exponentiated photos, which a checkpoint of the
+        // first must never resume (the first replays deterministically on a resumed run).
+        let first = rounds.is_empty() && last_try;
+        let resume: Option<FitState> = if first { checkpoint::resumable(ctx, CHECKPOINT_FORMAT) } else { None };
+        if let Some(state) = &resume {
+            ctx.note(&format!("resuming from the checkpoint at iteration {}", state.iteration));
+        }
+        let mut on_checkpoint = |state: &FitState| -> Result<(), FitError> {
+            if first {
+                checkpoint::write(ctx, CHECKPOINT_FORMAT, state).map_err(|e| FitError::Checkpoint(e.to_string()))?;
+                tracing::debug!(iteration = state.iteration, "checkpoint written");
+            }
+            Ok(())
+        };
+        let label = if search { format!("fit (photos ^ {exponent:.3})") } else { "fit".to_owned() };
+        let progress = ctx.progress(&label, u64::from(plan.object.iterations));
+        let outcome = optim::fit::fit_objects(&inputs, resume, &mut on_checkpoint, progress.as_ref())?;
+        drop(progress);
+        if !search || !last_try {
+            break outcome;
+        }
+        let sets = optim::fit::pixels::collect(
+            &scene,
+            &cameras,
+            images,
+            objects.len(),
+            plan.object.holdout_fraction.max(EXPONENT_HOLDOUT_FRACTION),
+            plan.object.holdout_pixels as usize,
+            plan.object.seed,
+        );
+        let m = optim::photometric::render_misfit(
+            &scene,
+            &cameras,
+            &outcome.params,
+            &settings,
+            &sets.holdout,
+            plan.object.holdout_spp,
+            plan.object.seed,
+            rounds.len() as u64,
+        )?;
+        // In the photos' original log units: raising to e scales every log residual by e.
+        let misfit = m.value / (exponent * exponent);
+        rounds.push(ExponentRound { exponent, misfit, terms: m.terms });
+        ctx.note(&format!("tone-curve exponent {exponent:.3}: held-out log misfit {misfit:.3e} ({} terms)", m.terms));
+        let trials: Vec<(f64, f64)> = rounds.iter().map(|r| (r.exponent, r.misfit)).collect();
+        match optim::photometric::next_exponent(&trials) {
+            NextExponent::Try(e) => exponent = e,
+            NextExponent::Final(e) => {
+                exponent = e;
+                last_try = false;
+            }
+        }
     };
-    let resume: Option<FitState> = checkpoint::resumable(ctx, CHECKPOINT_FORMAT);
-    if let Some(state) = &resume {
-        ctx.note(&format!("resuming from the checkpoint at iteration {}", state.iteration));
+    let mut outputs = Vec::new();
+    if search {
+        let file = PhotometricFile { format: PHOTOMETRIC_FORMAT.into(), exponent: [exponent; 3], rounds };
+        write_json_atomic(&ctx.dir.join(PHOTOMETRIC_FILE), &file)?;
+        outputs.push(PathBuf::from("object").join(PHOTOMETRIC_FILE));
+        ctx.note(&format!("photos raised to the exponent {exponent:.3} for the final fit and every later stage"));
     }
-    let mut on_checkpoint = |state: &FitState| -> Result<(), FitError> {
-        checkpoint::write(ctx, CHECKPOINT_FORMAT, state).map_err(|e| FitError::Checkpoint(e.to_string()))?;
-        tracing::debug!(iteration = state.iteration, "checkpoint written");
-        Ok(())
-    };
-    let progress = ctx.progress("fit", u64::from(plan.object.iterations));
-    let outcome = optim::fit::fit_objects(&inputs, resume, &mut on_checkpoint, progress.as_ref())?;
-    drop(progress);
 
     let materials = MaterialsFile {
         format: MATERIALS_FORMAT.into(),
@@ -105,5 +179,6 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         outcome.discarded_samples,
         outcome.traced_paths
     ));
-    Ok(vec![PathBuf::from("object").join(MATERIALS_FILE), PathBuf::from("object").join(HISTORY_FILE)])
+    outputs.extend([PathBuf::from("object").join(MATERIALS_FILE), PathBuf::from("object").join(HISTORY_FILE)]);
+    Ok(outputs)
 }

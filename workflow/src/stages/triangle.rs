@@ -14,7 +14,6 @@ use std::path::PathBuf;
 use crate::artefacts::checkpoint;
 use crate::artefacts::ingest::Ingested;
 use crate::artefacts::object::{MATERIALS_FILE, read_result as read_object_result};
-use crate::artefacts::preprocess::Prepared;
 use crate::artefacts::triangle::{CHECKPOINT_FORMAT, RESULT_FILE, ResultFile};
 use crate::atomic_file::write_json_atomic;
 use crate::config::TriangleConfig;
@@ -31,7 +30,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         return Ok(Vec::new());
     }
     let scene_data = Ingested::read(&plan.output)?;
-    let prepared = Prepared::read(&plan.output)?;
+    let prepared = crate::artefacts::object::read_prepared(&plan.output)?;
     let materials = read_object_result(&plan.output)?;
     let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
     let params = materials.params_for(&ids, &plan.output.join("object").join(MATERIALS_FILE))?;

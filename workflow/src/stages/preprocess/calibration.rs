@@ -64,8 +64,10 @@ fn sample_points(scene: &Ingested, n: usize, seed: u64) -> Vec<SurfaceSample> {
             let tri = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
             let [a, b, c] = corners(&scene.triangles[tri]);
             // Uniform on the triangle: fold the unit square onto it.
-            let (mut s, mut t) =
-                (uniform(seed, draw::CALIBRATION_POINTS, k, 1) as f32, uniform(seed, draw::CALIBRATION_POINTS, k, 2) as f32);
+            let (mut s, mut t) = (
+                uniform(seed, draw::CALIBRATION_POINTS, k, 1) as f32,
+                uniform(seed, draw::CALIBRATION_POINTS, k, 2) as f32,
+            );
             if s + t > 1.0 {
                 (s, t) = (1.0 - s, 1.0 - t);
             }
@@ -120,8 +122,8 @@ fn observe(
                 [0, 1, 2].map(|c| f32::from(img.codes[3 * i + c]) / m)
             }
         };
-        let k = &cam.intrinsics;
-        let r2 = normalised_r2(f64::from(x), f64::from(y), k.cx, k.cy, cam.width, cam.height) as f32;
+        let ki = &cam.intrinsics;
+        let r2 = normalised_r2(f64::from(x), f64::from(y), ki.cx, ki.cy, cam.width, cam.height) as f32;
         out.push(Observation { point: k as u32, photo: view_index as u32, r2, value });
     }
     out
@@ -199,7 +201,14 @@ pub fn camera_groups(views: &[&View]) -> Vec<u32> {
         .map(|v| {
             let c = &v.camera;
             let k = &c.intrinsics;
-            let key = [u64::from(c.width), u64::from(c.height), k.fx.to_bits(), k.fy.to_bits(), k.cx.to_bits(), k.cy.to_bits()];
+            let key = [
+                u64::from(c.width),
+                u64::from(c.height),
+                k.fx.to_bits(),
+                k.fy.to_bits(),
+                k.cx.to_bits(),
+                k.cy.to_bits(),
+            ];
             let g = seen.iter().position(|s| *s == key).unwrap_or_else(|| {
                 seen.push(key);
                 seen.len() - 1

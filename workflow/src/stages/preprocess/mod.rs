@@ -161,7 +161,8 @@ mod tests {
         };
         assert_eq!(names(&ImagesConfig::default()), ["a", "b", "c", "d", "e"]);
         assert_eq!(names(&ImagesConfig { every: 2, ..ImagesConfig::default() }), ["a", "c", "e"]);
-        let cfg = ImagesConfig { cameras: vec!["e".into(), "b".into(), "d".into()], every: 2, ..ImagesConfig::default() };
+        let cfg =
+            ImagesConfig { cameras: vec!["e".into(), "b".into(), "d".into()], every: 2, ..ImagesConfig::default() };
         assert_eq!(names(&cfg), ["b", "e"]);
         let bad = ImagesConfig { cameras: vec!["zz".into()], ..ImagesConfig::default() };
         assert!(select_views(&views, &bad).unwrap_err().contains("`zz`"));
