@@ -126,6 +126,24 @@ impl CalibrationFile {
         }
     }
 
+    /// The estimates in the units of photos raised to `exponent` (what the object stage applies when the
+    /// photos alone left the tone curve's exponent open): gains, vignetting and response all raised to it.
+    #[must_use]
+    pub fn raised(&self, exponent: f64) -> Self {
+        let mut out = self.clone();
+        for v in &mut out.views {
+            v.gain = v.gain.map(|g| g.map(|x| x.powf(exponent)));
+        }
+        for c in &mut out.cameras {
+            c.beta = c.beta.map(|b| b * exponent);
+            c.corner = c.corner.powf(exponent);
+            c.profile = c.profile.iter().map(|v| v.powf(exponent)).collect();
+        }
+        let e = exponent as f32;
+        out.response = out.response.map(|r| r.into_iter().map(|v| v.map(|x| x.powf(e))).collect());
+        out
+    }
+
     /// One line for the run log: what was estimated and its range.
     #[must_use]
     pub fn summary(&self) -> String {

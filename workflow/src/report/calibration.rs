@@ -4,14 +4,36 @@
 
 use std::fmt::Write;
 
+use crate::artefacts::object::PhotometricFile;
 use crate::artefacts::preprocess::CalibrationFile;
 use crate::svg::{Curve, escape, line_chart};
 
-/// The section's HTML.
+/// The section's HTML: the calibration as the fit used it (raised to the searched exponent, when there was a
+/// search, whose trials are listed).
 #[must_use]
-pub fn section(c: &CalibrationFile) -> String {
+pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "<h2>Photometric calibration</h2>\n<p>{}</p>", escape(&c.summary()));
+    let _ = writeln!(s, "<h2>Photometric calibration</h2>\n<p>{}</p>", escape(&preprocessed.summary()));
+    let raised;
+    let c = match search {
+        Some(p) => {
+            let e = p.exponent[1];
+            let _ = writeln!(
+                s,
+                "<p>The photos alone left the tone curve's exponent open; fits of the photos raised to the exponents \
+                 below were compared by their held-out log misfit (in the photos' original log units), and the \
+                 final fit used <b>{e:.3}</b>. Gains, vignetting and response below are raised to it.</p>"
+            );
+            let _ = writeln!(s, "<table><tr><th>exponent</th><th>held-out log misfit</th></tr>");
+            for r in &p.rounds {
+                let _ = writeln!(s, "<tr><td>{:.3}</td><td>{:.4e}</td></tr>", r.exponent, r.misfit);
+            }
+            let _ = writeln!(s, "</table>");
+            raised = preprocessed.raised(e);
+            &raised
+        }
+        None => preprocessed,
+    };
     let _ = writeln!(
         s,
         "<p>Gains divide each photo's linear values (exposure × white balance; geometric mean 1 over the kept \
@@ -132,13 +154,30 @@ mod tests {
 
     #[test]
     fn section_lists_every_view_and_shows_only_what_was_estimated() {
-        let s = section(&file(true, true));
+        let s = section(&file(true, true), None);
         assert!(s.contains("a&lt;b") && s.contains("0.5000"), "gains table escapes names: {s}");
         assert!(s.contains("left out: all clipped"));
         assert!(s.contains("Inverse response") && s.contains("sRGB"));
         assert!(s.contains("Vignetting"));
-        let plain = section(&file(false, false));
+        let plain = section(&file(false, false), None);
         assert!(!plain.contains("Inverse response") && !plain.contains("Vignetting:"));
         assert!(plain.contains("exposure per photo") || plain.contains("Exposure per photo"));
+    }
+
+    #[test]
+    fn a_searched_exponent_raises_what_is_shown_and_lists_its_trials() {
+        use crate::artefacts::object::{ExponentRound, PHOTOMETRIC_FORMAT};
+        let search = PhotometricFile {
+            format: PHOTOMETRIC_FORMAT.into(),
+            exponent: [2.0; 3],
+            rounds: vec![
+                ExponentRound { exponent: 1.0, misfit: 4e-3, terms: 10 },
+                ExponentRound { exponent: 2.0, misfit: 3e-3, terms: 10 },
+            ],
+        };
+        let s = section(&file(true, true), Some(&search));
+        assert!(s.contains("<b>2.000</b>"), "{s}");
+        assert!(s.contains("0.2500"), "gain 0.5 raised to 2: {s}");
+        assert!(s.contains("4.0000e-3") && s.contains("3.0000e-3"), "{s}");
     }
 }

@@ -52,6 +52,8 @@ pub struct ReportData {
     pub samples: Option<SampleCounts>,
     /// The preprocess stage's photometric calibration, when it ran.
     pub calibration: Option<crate::artefacts::preprocess::CalibrationFile>,
+    /// The object stage's tone-curve exponent search, when it ran.
+    pub photometric: Option<crate::artefacts::object::PhotometricFile>,
 }
 
 /// Path samples a fit traced and, of them, the ones the tracer discarded as non-finite.
@@ -179,7 +181,7 @@ pub fn html(data: &ReportData) -> String {
     s.push_str("</table>\n");
 
     if let Some(c) = &data.calibration {
-        s.push_str(&calibration::section(c));
+        s.push_str(&calibration::section(c, data.photometric.as_ref()));
     }
     if let Some(t) = &data.triangle {
         s.push_str(
@@ -272,6 +274,7 @@ mod tests {
             }),
             samples: Some(SampleCounts { traced_paths: 2_000_000, discarded: 3 }),
             calibration: None,
+            photometric: None,
         };
         let page = html(&data);
         assert!(!page.contains("<script>"));

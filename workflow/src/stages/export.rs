@@ -300,6 +300,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         why: history.why.clone(),
         triangle: None,
         calibration: crate::artefacts::preprocess::CalibrationFile::read(&plan.output)?,
+        photometric: crate::artefacts::object::read_photometric(&plan.output)?,
         // history.json files written before the counts existed hold 0 paths: nothing to show then.
         samples: (history.traced_paths > 0).then_some(crate::report::SampleCounts {
             traced_paths: history.traced_paths,
