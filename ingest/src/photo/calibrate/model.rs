@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use super::response::{self, KNOTS};
-use super::result::{RowInfo, finish};
+use super::result::{Layout, RowInfo, finish};
 use super::solve::{self, Constraint, Penalty, Problem, Row};
 use super::{CalibrateError, Calibration, CalibrationOptions, Observation, ResponseMode};
 use crate::photo::mask::SATURATION_FRACTION;
@@ -125,17 +125,6 @@ fn linked_photos(
     }
     reasons.sort_by_key(|r| r.0);
     (active, reasons)
-}
-
-/// Layout of the unknowns.
-pub(super) struct Layout {
-    /// First gain unknown of each solved photo.
-    pub gain: Vec<Option<usize>>,
-    /// Gains per photo: 0 (none), 1 (exposure) or 3 (per channel).
-    pub per_photo: usize,
-    /// First vignetting unknown of each group.
-    pub beta: Vec<Option<usize>>,
-    pub n: usize,
 }
 
 pub(super) fn run(

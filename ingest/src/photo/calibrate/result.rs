@@ -1,11 +1,21 @@
 //! From the solver's unknowns to a [`Calibration`]: the exponent of an estimated response (see
 //! [`super::response`]), gains, vignetting, the response curve and the diagnostics.
 
-use super::model::Layout;
 use super::response::{self, GammaSource, KNOTS};
 use super::solve::{Problem, Solution};
 use super::{Calibration, CalibrationOptions, ResponseMode, Vignetting};
 use crate::photo::response::{CURVE_LEN, ResponseCurve};
+
+/// Layout of the unknowns (built by `super::model`, read back here).
+pub(super) struct Layout {
+    /// First gain unknown of each solved photo.
+    pub gain: Vec<Option<usize>>,
+    /// Gains per photo: 0 (none), 1 (exposure) or 3 (per channel).
+    pub per_photo: usize,
+    /// First vignetting unknown of each group.
+    pub beta: Vec<Option<usize>>,
+    pub n: usize,
+}
 
 /// Source observation and channel of every solver row.
 pub(super) struct RowInfo {
