@@ -83,16 +83,21 @@ fn linear_scene(seed: u64, photos: usize, groups: u32, spread: bool, noise: f64,
     Scene { groups: group_of, gains, vignetting, observations }
 }
 
-#[test]
-fn linear_gains_and_vignetting_with_noise_and_outliers() {
-    let scene = linear_scene(11, 12, 3, true, 0.01, 0.05);
-    let opts = CalibrationOptions {
+/// Linear values, every gain and the vignetting estimated.
+fn linear_all_estimates() -> CalibrationOptions {
+    CalibrationOptions {
         response: ResponseMode::Linear,
         exposure: true,
         white_balance: true,
         vignetting: true,
         seed: 0,
-    };
+    }
+}
+
+#[test]
+fn linear_gains_and_vignetting_with_noise_and_outliers() {
+    let scene = linear_scene(11, 12, 3, true, 0.01, 0.05);
+    let opts = linear_all_estimates();
     let cal = calibrate(&scene.groups, &scene.observations, &opts).unwrap();
     let gain_error = worst_gain_error(&cal, &scene.gains);
     let corner_error = (0..3)
@@ -112,13 +117,7 @@ fn linear_gains_and_vignetting_with_noise_and_outliers() {
 #[test]
 fn single_exposure_stays_at_one() {
     let scene = linear_scene(12, 12, 3, false, 0.01, 0.0);
-    let opts = CalibrationOptions {
-        response: ResponseMode::Linear,
-        exposure: true,
-        white_balance: true,
-        vignetting: true,
-        seed: 0,
-    };
+    let opts = linear_all_estimates();
     let cal = calibrate(&scene.groups, &scene.observations, &opts).unwrap();
     let gain_error = worst_gain_error(&cal, &scene.gains);
     let corner_error = cal.vignetting.iter().map(|v| (v.factor(1.0) - 1.0).abs()).fold(0.0, f64::max);

@@ -226,20 +226,9 @@ impl Prepared {
         Ok(Self { names: list.views, cameras, images })
     }
 
-    /// Raises every photo's linear values to `exponent[c]` per channel (masked pixels untouched): the
-    /// correction of a tone curve known only up to a power.
+    /// Raises every photo's linear values to `exponent[c]` per channel ([`raise_to_exponent`]).
     pub fn apply_exponent(&mut self, exponent: [f64; 3]) {
-        if exponent == [1.0; 3] {
-            return;
-        }
-        let e = exponent.map(|x| x as f32);
-        self.images.par_iter_mut().for_each(|img| {
-            for px in img.rgb.chunks_exact_mut(3) {
-                for (v, e) in px.iter_mut().zip(e) {
-                    *v = if *v > 0.0 { v.powf(e) } else { *v };
-                }
-            }
-        });
+        raise_to_exponent(&mut self.images, exponent);
     }
 
     /// The prepared cameras as the tracer's.
@@ -247,4 +236,20 @@ impl Prepared {
     pub fn tracer_cameras(&self) -> Vec<tracer::Camera> {
         self.cameras.iter().map(super::ingest::tracer_camera).collect()
     }
+}
+
+/// Raises every image's linear values to `exponent[c]` per channel (non-positive values untouched): the
+/// correction of a tone curve known only up to a power.
+pub fn raise_to_exponent(images: &mut [LinearImage], exponent: [f64; 3]) {
+    if exponent == [1.0; 3] {
+        return;
+    }
+    let e = exponent.map(|x| x as f32);
+    images.par_iter_mut().for_each(|img| {
+        for px in img.rgb.chunks_exact_mut(3) {
+            for (v, e) in px.iter_mut().zip(e) {
+                *v = if *v > 0.0 { v.powf(e) } else { *v };
+            }
+        }
+    });
 }

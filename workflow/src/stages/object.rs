@@ -23,7 +23,7 @@ use crate::artefacts::object::{
     CHECKPOINT_FORMAT, ExponentRound, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE, PHOTOMETRIC_FILE,
     PHOTOMETRIC_FORMAT, PhotometricFile,
 };
-use crate::artefacts::preprocess::{CalibrationFile, Prepared};
+use crate::artefacts::preprocess::{CalibrationFile, Prepared, raise_to_exponent};
 use crate::atomic_file::write_json_atomic;
 use crate::config::profile_name;
 use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
@@ -57,13 +57,14 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let mut rounds: Vec<ExponentRound> = Vec::new();
     let mut last_try = true;
     let outcome = loop {
-        let mut corrected = Prepared { names: Vec::new(), cameras: Vec::new(), images: Vec::new() };
+        let corrected;
         let images = if exponent == 1.0 {
             &prepared.images
         } else {
-            corrected.images = prepared.images.clone();
-            corrected.apply_exponent([exponent; 3]);
-            &corrected.images
+            let mut raised = prepared.images.clone();
+            raise_to_exponent(&mut raised, [exponent; 3]);
+            corrected = raised;
+            &corrected
         };
         let inputs = FitInputs {
             scene: &scene,
