@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use ingest::photo::calibrate::{CalibrationOptions, GammaSource, ResponseMode, calibrate_bracket};
 use ingest::photo::response::bracket;
-use ingest::photo::{DecodedImage, read_image, recover_response};
+use ingest::photo::{DecodedImage, ResponseCurve, read_image, recover_response, recover_response_sampled};
 
 fn data_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/debevec-memorial")
@@ -24,9 +24,25 @@ fn exposure_times(dir: &std::path::Path) -> Vec<(String, f64)> {
         .collect()
 }
 
+/// Grid samples of the OpenCV reference curve: its SVD takes about 25 s at 500 (16 photos).
+const REFERENCE_SAMPLES: i32 = 500;
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
+}
+
+/// Median and largest |ln(a / b)| over channels and codes `lo..=hi`, both curves normalised at code 128.
+fn curve_distance(a: &ResponseCurve, b: &ResponseCurve, lo: usize, hi: usize) -> (f64, f64) {
+    let mut errors = Vec::new();
+    for c in 0..3 {
+        for z in lo..=hi {
+            let x = f64::from(a.values()[z][c]) / f64::from(a.values()[128][c]);
+            let y = f64::from(b.values()[z][c]) / f64::from(b.values()[128][c]);
+            errors.push((x / y).ln().abs());
+        }
+    }
+    (median(errors.clone()), errors.iter().copied().fold(0.0, f64::max))
 }
 
 #[test]
@@ -73,35 +89,38 @@ fn memorial_exposures_and_response_from_the_photos_alone() {
         worst_ratio = worst_ratio.max((ratio - 1.0).abs());
     }
 
-    let opencv = recover_response(&bracket(&paths, &times)).unwrap();
+    // OpenCV's curve from its default 70 grid samples moves by about 0.05 in this metric when only its samples
+    // change; from 500 grid samples its own sampling noise is about half that (docs/photo/self-calibration.md),
+    // so the 500-sample curve is the reference the target is judged against, the 70-sample one is printed.
+    let default_ref = recover_response(&bracket(&paths, &times)).unwrap();
+    let reference = recover_response_sampled(&bracket(&paths, &times), REFERENCE_SAMPLES).unwrap();
     let ours = cal.response.as_ref().unwrap();
-    let compare = |lo: usize, hi: usize| {
-        let mut errors = Vec::new();
-        for c in 0..3 {
-            for z in lo..=hi {
-                let a = f64::from(ours.values()[z][c]) / f64::from(ours.values()[128][c]);
-                let b = f64::from(opencv.values()[z][c]) / f64::from(opencv.values()[128][c]);
-                errors.push((a / b).ln().abs());
-            }
-        }
-        (median(errors.clone()), errors.iter().copied().fold(0.0, f64::max))
-    };
+    let compare = |other: &ResponseCurve, lo: usize, hi: usize| curve_distance(ours, other, lo, hi);
     for (lo, hi) in [(3, 15), (16, 31), (32, 63), (64, 127), (128, 191), (192, 249)] {
-        println!("  response vs OpenCV, codes {lo}..={hi}: median |ln| {:.4}", compare(lo, hi).0);
+        println!(
+            "  response vs OpenCV ({REFERENCE_SAMPLES} samples), codes {lo}..={hi}: median |ln| {:.4}",
+            compare(&reference, lo, hi).0
+        );
     }
-    let (med, max) = compare(3, 249);
-    let (med_mid, max_mid) = compare(16, 240);
+    let (med, max) = compare(&reference, 3, 249);
+    let (med_mid, max_mid) = compare(&reference, 16, 240);
+    let (med_default, _) = compare(&default_ref, 3, 249);
+    let (ref_vs_default, _) = curve_distance(&reference, &default_ref, 3, 249);
     println!("  worst exposure-ratio error {worst_ratio:.4}");
-    println!("  response vs OpenCV: median |ln| {med:.4} (max {max:.3}) over codes 3..=249");
-    println!("  response vs OpenCV: median |ln| {med_mid:.4} (max {max_mid:.3}) over codes 16..=240");
+    println!(
+        "  response vs OpenCV ({REFERENCE_SAMPLES} samples): median |ln| {med:.4} (max {max:.3}) over codes 3..=249"
+    );
+    println!(
+        "  response vs OpenCV ({REFERENCE_SAMPLES} samples): median |ln| {med_mid:.4} (max {max_mid:.3}) over codes 16..=240"
+    );
+    println!("  response vs OpenCV (70 samples, its default): median |ln| {med_default:.4} over codes 3..=249");
+    println!("  OpenCV {REFERENCE_SAMPLES} samples vs OpenCV 70 samples: median |ln| {ref_vs_default:.4}");
     // Measured (docs/photo/self-calibration.md): the recovered exposures lie within 0.15 of a step of a
     // one-stop lattice, so the ratios snap to the listed ×2; the exponent rests on the shape prior's choice
-    // among multiples of ⅓ EV, so it is not called reliable. Target (a), ratios within 5 %, is asserted.
-    // Target (b), response within a median |ln| of 0.05 of OpenCV, is not reached (0.054): OpenCV's own curve
-    // from other samples of the same photos and times differs from this reference by 0.047–0.064, so the bound
-    // pins what is reached at that noise floor.
+    // among multiples of ⅓ EV, so it is not called reliable. Targets: consecutive ratios within 5 %, and the
+    // response within a median |ln| of 0.05 of OpenCV's given the listed times.
     assert_eq!(cal.gamma_source, GammaSource::BracketSteps);
     assert!(!cal.gamma_reliable);
     assert!(worst_ratio < 0.05, "{worst_ratio}");
-    assert!(med < 0.06, "{med}");
+    assert!(med <= 0.05, "{med}");
 }

@@ -38,7 +38,7 @@ use crate::camera::Camera;
 
 pub use cache::{read_cached, write_cached, write_exr};
 pub use image_io::{DecodedImage, DisplayImage, PixelReport, decode_image, read_image, read_image_checked};
-pub use response::{ResponseCurve, merge_bracket, recover_response};
+pub use response::{ResponseCurve, merge_bracket, recover_response, recover_response_sampled};
 
 /// A problem with one photo file (or with the processing of the image read from it). Every variant names the
 /// file it concerns.
