@@ -56,6 +56,9 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let mut exponent = 1.0f64;
     let mut rounds: Vec<ExponentRound> = Vec::new();
     let mut last_try = true;
+    // Each trial's fit, so that a search ending on an exponent it already tried reuses that fit (same photos,
+    // same seed: the final fit would repeat it exactly).
+    let mut trial_fits: Vec<(f64, optim::fit::FitOutcome)> = Vec::new();
     let outcome = loop {
         let corrected;
         let images = if exponent == 1.0 {
@@ -118,12 +121,17 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         let misfit = m.value / (exponent * exponent);
         rounds.push(ExponentRound { exponent, misfit, terms: m.terms });
         ctx.note(&format!("tone-curve exponent {exponent:.3}: held-out log misfit {misfit:.3e} ({} terms)", m.terms));
+        trial_fits.push((exponent, outcome));
         let trials: Vec<(f64, f64)> = rounds.iter().map(|r| (r.exponent, r.misfit)).collect();
         match optim::photometric::next_exponent(&trials) {
             NextExponent::Try(e) => exponent = e,
             NextExponent::Final(e) => {
                 exponent = e;
                 last_try = false;
+                if let Some(i) = trial_fits.iter().position(|(tried, _)| *tried == e) {
+                    ctx.note(&format!("exponent {e:.3} was tried already: its fit is the final one"));
+                    break trial_fits.swap_remove(i).1;
+                }
             }
         }
     };
