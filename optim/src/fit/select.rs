@@ -278,6 +278,8 @@ pub fn choose_models(
                     cols: &col,
                     target: &tgt,
                     second: None,
+                    weights: None,
+                    groups: None,
                     penalty: &[0.0],
                     prox: &[0.0],
                     anchor: &[0.0],

@@ -43,14 +43,18 @@ pub struct ObjectFitSettings {
     pub huber_delta: f64,
     /// Emission L1 weight, relative: an object's emission e_k costs `emission_l1 · s_k · e_k`, with s_k the
     /// mean |∂I/∂e_k| over the solve pixels — i.e. how strongly that emission moves the loss (a hidden light's s_k is ~1e-4 of a visible wall's),
-    /// so one weight treats a visible wall and a hidden light alike.
+    /// so one weight treats a visible wall and a hidden light alike. It applies in the emission-only solves,
+    /// which choose the emitters; the joint Gauss–Newton steps keep the emitters they start from, unpenalised.
     pub emission_l1: f64,
     pub seed: u64,
     /// A checkpoint is handed out every this many iterations (Adam iterations and refinement steps).
     pub checkpoint_every: u32,
     /// The emission is re-solved in closed form every this many Adam iterations (0 = only at the start).
     pub emission_solve_every: u32,
-    /// Pixels in the closed-form emission solve and the Gauss–Newton refinement.
+    /// Pixels in the closed-form emission solve and the Gauss–Newton refinement: 32 per object (and for the
+    /// pixels that see no object), the rest in proportion to the objects' training pixels, each weighted by its
+    /// object's share of the training pixels (`fit::pixels::draw_stratified`); with more than
+    /// `solve_pixels / 32` objects a solve draws 32 per object, more than `solve_pixels`.
     pub solve_pixels: u32,
     /// Paths per pixel of each Jacobian column / value in the solves.
     pub solve_spp: u32,
