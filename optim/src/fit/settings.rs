@@ -71,7 +71,11 @@ pub struct ObjectFitSettings {
     /// Try a specular lobe per object and keep it when the held-out residual improves significantly.
     pub try_specular: bool,
     /// Gauss–Newton steps on emission and base colour after specular lobes were kept (lobes fixed; averaged
-    /// over the second half). The lobe itself comes from a roughness search ([`crate::fit::roughness`]).
+    /// over the second half); 0 = only the emission is re-solved (materials fixed). The lobe itself comes from a
+    /// roughness search ([`crate::fit::roughness`]). Default 0: the joint steps fit the light against the lobe's
+    /// specular strength, whose search noise (glossy floor 0.68–0.78 for a true 0.8) they turned into light
+    /// errors of up to 10 % (docs/optim/design-measurements.md, "Solve pixels per object and the checker
+    /// light").
     pub specular_trial_steps: u32,
 }
 
@@ -97,7 +101,7 @@ impl Default for ObjectFitSettings {
             holdout_pixels: 2048,
             holdout_spp: 512,
             try_specular: true,
-            specular_trial_steps: 4,
+            specular_trial_steps: 0,
         }
     }
 }
