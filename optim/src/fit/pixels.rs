@@ -172,7 +172,8 @@ pub fn draw_stratified(from: &[Sample], n: usize, floor: usize, seed: u64, strea
     let rest = n.saturating_sub(floor * strata.len());
     let exact: Vec<f64> = strata.iter().map(|(_, idx)| rest as f64 * idx.len() as f64 / total).collect();
     let mut share: Vec<usize> = exact.iter().map(|e| e.floor() as usize).collect();
-    let mut left = rest - share.iter().sum::<usize>();
+    // Saturating: rounding could make the floors' sum exceed `rest` by one in a degenerate split.
+    let mut left = rest.saturating_sub(share.iter().sum::<usize>());
     let mut order: Vec<usize> = (0..strata.len()).collect();
     order.sort_by(|&a, &b| (exact[b] - exact[b].floor()).total_cmp(&(exact[a] - exact[a].floor())).then(a.cmp(&b)));
     for &k in &order {
