@@ -41,8 +41,9 @@ pub mod draw {
     pub const HOLDOUT: u64 = 1;
     /// Per-object fit: the pixels of an Adam batch (keyed by the iteration).
     pub const BATCH: u64 = 2;
-    /// Per-object fit: the pixels of a closed-form solve, and of an object's roughness search (keyed by the
-    /// solve's [`super::key`]).
+    /// Per-object fit: the pixels of a closed-form solve (keyed by the solve's [`super::key`], and by the
+    /// object stratum and index within it, `crate::fit::pixels::draw_stratified`), and of an object's roughness
+    /// search (keyed by the solve's [`super::key`]).
     pub const SOLVE_PIXELS: u64 = 3;
     /// Model selection: whether a training pixel chooses its object's lobe or joins the lobe test (keyed by the
     /// pixel).

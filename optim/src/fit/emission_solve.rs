@@ -2,17 +2,23 @@
 //!
 //! - [`Unknowns::Emission`]: the closed-form emission solve. Radiance is linear in emission, so for fixed
 //!   materials `I_j = Σ_k J_jk e_k` exactly, with J from basis renders ([`super::jacobian`]); e ≥ 0 minimises
-//!   the (IRLS-)L1 data term plus the relative emission penalty `λ Σ_k s_k e_k`, where
+//!   the data term (the object stage's per-object Huber, [`DataLoss::GroupHuber`], by IRLS) plus the relative emission penalty `λ Σ_k s_k e_k`, where
 //!   s_k = mean_j |J_jk| is how strongly object k's emission moves the loss. A single λ then treats a visible
 //!   wall (s ≈ its share of the pixels) and a hidden light (s ≈ 1e-4 of that) alike.
 //! - [`Unknowns::EmissionAndBaseColor`]: one Gauss–Newton step on emission and base colour jointly, with a
 //!   Levenberg–Marquardt proximal term on base colour. Moving both together is what crosses the
-//!   albedo/emission scale valley that alternating or joint first-order steps creep along.
+//!   albedo/emission scale valley that alternating or joint first-order steps creep along. The step keeps the
+//!   emitters it starts from: no emission penalty, objects that do not emit pinned at 0. Which objects emit is
+//!   chosen where it is identifiable — by the emission-only solves (materials fixed) and model selection — and
+//!   not here: the linearisation has a spurious near-degeneracy between a light and every albedo it shines on
+//!   (I = J_e·e exactly, and J_ρ·ρ₀ ≈ I as well), along which the penalty dragged a hidden light's channel to
+//!   0 with every albedo of that channel doubled, one step in four on a textured-floor room
+//!   (docs/optim/design-measurements.md, "Solve pixels per object and the checker light").
 
 use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, EMISSION_MAX, idx};
 use super::linear::{self, DataLoss, Problem};
-use super::pixels::Sample;
+use super::pixels::WeightedDraw;
 use tracer::{PixelRef, TracerError};
 
 use crate::streams::key::SECOND_ESTIMATE;
@@ -36,14 +42,14 @@ pub struct SolveOptions {
     pub irls_iters: usize,
 }
 
-/// Updates emission (and base colour) of `x` in place from a solve on `samples` with `spp` paths per
-/// Jacobian entry, random numbers keyed by `iteration_key`. `free_base_color[k]` = object k's base colour is
+/// Updates emission (and base colour) of `x` in place from a solve on `samples` (with their row weights, see
+/// [`linear::Problem::weights`]) with `spp` paths per Jacobian entry, random numbers keyed by `iteration_key`. `free_base_color[k]` = object k's base colour is
 /// constrained by the photos (seen in enough pixels); other base colours are left as they are. Returns the
 /// mean per-channel L1 residual of the parameters before the update.
 pub fn solve_step(
     ctx: &Ctx<'_>,
     x: &mut [f64],
-    samples: &[Sample],
+    samples: &WeightedDraw,
     spp: u32,
     iteration_key: u64,
     free_base_color: &[bool],
@@ -59,7 +65,7 @@ pub fn solve_step(
 pub fn solve_step_pinned(
     ctx: &Ctx<'_>,
     x: &mut [f64],
-    samples: &[Sample],
+    draw: &WeightedDraw,
     spp: u32,
     iteration_key: u64,
     free_base_color: &[bool],
@@ -67,6 +73,7 @@ pub fn solve_step_pinned(
     opts: &SolveOptions,
 ) -> Result<f64, TracerError> {
     let k_count = x.len() / layout::PER_OBJECT;
+    let samples = &draw.samples;
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
     let params = layout::to_params(x);
     // Two independent estimates of every Jacobian entry (instrumental variables, see `linear::Problem`).
@@ -99,15 +106,26 @@ pub fn solve_step_pinned(
     };
     let (jm, jm2) = (base_color_cols(&jr), base_color_cols(&jr2));
     let targets: Vec<glam::Vec3> = samples.iter().map(|s| s.target).collect();
+    let groups: Vec<u32> = samples.iter().map(|s| s.object.unwrap_or(u32::MAX)).collect();
     let triple = |k: usize, at: usize| [x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]];
+    // The joint step keeps the emitters it is given (see the module docs): no emission penalty, and an object
+    // that does not emit does not start to.
+    let pinned: Vec<bool> = (0..k_count)
+        .map(|k| {
+            no_emission.get(k).copied().unwrap_or(false) || (joint && triple(k, EMISSION).iter().all(|&v| v == 0.0))
+        })
+        .collect();
+    let opts = &if joint { SolveOptions { emission_l1: 0.0, ..*opts } } else { *opts };
     let mut emission: Vec<[f64; 3]> = (0..k_count).map(|k| triple(k, EMISSION)).collect();
     let mut base_color: Vec<[f64; 3]> = free.iter().map(|&k| triple(k, BASE_COLOR)).collect();
     let loss = solve_on_columns(
         Columns { a: &je, b: &je2 },
         Columns { a: &jm, b: &jm2 },
         &targets,
+        &draw.weights,
+        &groups,
         &mut emission,
-        no_emission,
+        &pinned,
         &mut base_color,
         &vec![[1.0; 3]; free.len()],
         opts,
@@ -137,7 +155,9 @@ pub struct Columns<'a> {
 /// is not per object (the per-triangle stage): unknowns are the listed emissions `emission[i]` (columns
 /// `emission_cols`, exact since radiance is linear in emission) and material unknowns `material[i]` (columns
 /// `material_cols`, a linearisation about their current values; empty for an emission-only solve), over the
-/// pixels whose photo values are `targets`. Same estimator: the two column estimates as instrumental
+/// pixels whose photo values are `targets`, with row weights `weights` (empty: all 1; see
+/// [`linear::Problem::weights`]) and row groups `groups` (the object each pixel sees, for
+/// [`DataLoss::GroupHuber`]; empty: one group). Same estimator: the two column estimates as instrumental
 /// variables, IRLS-L1 (or L2), the relative emission lasso relaxed on its support, e ∈ [0, EMISSION_MAX],
 /// Marquardt damping `opts.damping · mean_j J_ij²` of each material unknown towards its current value and the
 /// box [0, `material_hi[i]`]. Emissions with `emission_pinned[i]` are held at 0 (a model-selection verdict;
@@ -149,6 +169,8 @@ pub fn solve_on_columns(
     emission_cols: Columns<'_>,
     material_cols: Columns<'_>,
     targets: &[glam::Vec3],
+    weights: &[f64],
+    groups: &[u32],
     emission: &mut [[f64; 3]],
     emission_pinned: &[bool],
     material: &mut [[f64; 3]],
@@ -158,6 +180,9 @@ pub fn solve_on_columns(
     let ne = emission_cols.a.len().min(emission_cols.b.len()).min(emission.len());
     let nm = material_cols.a.len().min(material_cols.b.len()).min(material.len()).min(material_hi.len());
     let m = targets.len();
+    let weights: Vec<f64> = if weights.len() == m { weights.to_vec() } else { vec![1.0; m] };
+    // Weighted mean over the rows: with the draw's weights, an unbiased estimate of the mean over all pixels.
+    let wmean = |v: &mut dyn Iterator<Item = f64>| v.zip(&weights).map(|(a, w)| a * w).sum::<f64>() / m.max(1) as f64;
     let mut loss = 0.0;
     for c in 0..3 {
         let chan = |cols: &[Vec<[f64; 3]>], n: usize| -> Vec<Vec<f64>> {
@@ -175,14 +200,14 @@ pub fn solve_on_columns(
         let mut hi = vec![EMISSION_MAX; n];
         let mut var = vec![0.0; n];
         for k in 0..ne {
-            let s = cols[k].iter().zip(&cols2[k]).map(|(a, b)| 0.5 * (a + b).abs()).sum::<f64>() / m.max(1) as f64;
+            let s = wmean(&mut cols[k].iter().zip(&cols2[k]).map(|(a, b)| 0.5 * (a + b).abs()));
             penalty[k] = opts.emission_l1 * s;
             var[k] = emission[k][c];
         }
         // Mean |residual| of the current parameters (I_j = Σ_k J_jk e_k exactly), before the update.
         for (j, t) in target.iter().enumerate() {
             let pred: f64 = (0..ne).map(|k| 0.5 * (cols[k][j] + cols2[k][j]) * var[k]).sum();
-            loss += (t - pred).abs() / (3 * m.max(1)) as f64;
+            loss += weights[j] * (t - pred).abs() / (3 * m.max(1)) as f64;
         }
         for k in (0..ne).filter(|&k| emission_pinned.get(k).copied().unwrap_or(false)) {
             hi[k] = 0.0;
@@ -196,7 +221,7 @@ pub fn solve_on_columns(
                 target[j] += ca[j] * x0;
                 target2[j] += cb[j] * x0;
             }
-            let diag = ca.iter().zip(&cb).map(|(a, b)| (a * b).abs()).sum::<f64>() / m.max(1) as f64;
+            let diag = wmean(&mut ca.iter().zip(&cb).map(|(a, b)| (a * b).abs()));
             prox[v] = opts.damping * diag;
             anchor[v] = x0;
             hi[v] = material_hi[i][c];
@@ -208,6 +233,8 @@ pub fn solve_on_columns(
             cols: &cols,
             target: &target,
             second: Some((&cols2, &target2)),
+            weights: Some(&weights),
+            groups: (groups.len() == m).then_some(groups),
             penalty: &penalty,
             prox: &prox,
             anchor: &anchor,

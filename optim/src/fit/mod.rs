@@ -3,20 +3,27 @@
 //!
 //! # Method (see `object.rs` for the loop)
 //! 1. **Emission solve** (closed form, [`emission_solve`]): with materials fixed, radiance is linear in
-//!    emission; J from basis renders, e ≥ 0 by IRLS-L1 with a relative penalty.
+//!    emission; J from basis renders, e ≥ 0 by IRLS with a relative penalty. Every solve draws its pixels per
+//!    object (32 each, the rest in proportion to the objects' pixels, weighted back to the full data:
+//!    [`pixels::draw_stratified`]), and its data term is Huber's loss with one corner per object, the
+//!    interquartile range of that object's residuals ([`linear::DataLoss::GroupHuber`]): L1-like beyond it,
+//!    so outliers weigh little, and the mean of the object's pixels within it — where L1's minimum on an
+//!    object whose pixels have two colours (a textured floor fitted with one albedo) is flat between them, and
+//!    the hidden light's colour, fixed only by interreflection, followed the solves' pixel draw (measured:
+//!    docs/optim/design-measurements.md, "Solve pixels per object and the checker light").
 //! 2. **Adam** (paper §4.5) on base colour: batches of `batch_pixels` pixels uniform over all valid training
 //!    pixels, L1 loss with `n_value` value paths and `n_grad` independent gradient paths per pixel
 //!    (weights sign(I − I_target)/B), geometric learning-rate decay, clamping to [0, 1]; emission re-solved
 //!    every `emission_solve_every` iterations (variable projection: the emission always optimal for the
 //!    current materials).
-//! 3. **Gauss–Newton refinement** of base colour and emission jointly (`refine_steps` steps; the parameters
-//!    returned are averaged over the second half of the steps).
+//! 3. **Gauss–Newton refinement** of base colour and emission jointly (`refine_steps` steps, same pixel draw and
+//!    data term as 1; the parameters returned are averaged over the second half of the steps).
 //! 4. **Model selection** ([`select`]): each object starts diffuse with no emission; a specular lobe is tried
 //!    per object — roughness by a 1-D search on the profile loss with base colour and specular solved for each
 //!    roughness ([`roughness`]), on half of the object's training pixels, common random numbers — and kept only
 //!    when it lowers the residual on the other half plus the held-out pixels significantly (paired t > 3 and a
-//!    gain > 0.5 % of the mean radiance); with lobes kept, `specular_trial_steps` Gauss–Newton steps re-fit
-//!    emission and base colour. An emission term is kept only when it lowers the held-out residual
+//!    gain > 0.5 % of the mean radiance); with lobes kept, the emission is re-solved (or, with
+//!    `specular_trial_steps` > 0, Gauss–Newton steps re-fit emission and base colour). An emission term is kept only when it lowers the held-out residual
 //!    significantly. Objects seen in fewer than 16 training pixels are reported unconstrained. The decision,
 //!    its reason and `constrained` are in [`ObjectModel`] and go to `materials.json` (`model`, `why`,
 //!    `constrained`).

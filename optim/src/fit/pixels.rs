@@ -12,7 +12,7 @@ use std::collections::HashMap;
 use glam::{Vec2, Vec3};
 use tracer::PixelRef;
 
-use crate::streams::{draw, pixel_key, uniform};
+use crate::streams::{draw, mix64, pixel_key, uniform};
 
 /// One training or held-out pixel.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -137,6 +137,77 @@ pub fn draw(from: &[Sample], n: usize, seed: u64, stream: u64, draw: u64) -> Vec
         .collect()
 }
 
+/// Training pixels of a solve drawn per stratum, with their weights: see [`draw_stratified`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct WeightedDraw {
+    pub samples: Vec<Sample>,
+    /// One per sample, mean 1: `(1/M) Σ_j weights[j] · f(samples[j])` is an unbiased estimate of the mean of
+    /// `f` over all pixels of `from`.
+    pub weights: Vec<f64>,
+}
+
+/// Pixels drawn per object (each object is a stratum, and so are the pixels that see no object): every
+/// stratum gets `floor` pixels, the rest of `n` (if any) is shared in proportion to the strata's sizes (largest
+/// remainder, so the shares sum exactly). A stratum whose share reaches its size contributes each of its
+/// pixels once; otherwise its share is drawn uniformly with replacement, keyed by (seed, stream, draw, index).
+/// Pixel j of stratum k (N_k of the N pixels, n_k drawn) has the weight (N_k / N) · (M / n_k), M the number
+/// drawn: the weighted mean over the draw is the stratified estimate of the mean over all of `from`, which is
+/// unbiased whatever the allocation — the floor buys small objects rows without changing what a solve
+/// minimises in expectation.
+#[must_use]
+pub fn draw_stratified(from: &[Sample], n: usize, floor: usize, seed: u64, stream: u64, draw: u64) -> WeightedDraw {
+    if from.is_empty() {
+        return WeightedDraw::default();
+    }
+    // Strata in a fixed order (by object, "no object" last) so that the draw is a pure function of its key.
+    let mut strata: Vec<(Option<u32>, Vec<usize>)> = {
+        let mut groups: HashMap<Option<u32>, Vec<usize>> = HashMap::new();
+        for (i, s) in from.iter().enumerate() {
+            groups.entry(s.object).or_default().push(i);
+        }
+        groups.into_iter().collect()
+    };
+    strata.sort_by_key(|(o, _)| o.map_or(u64::MAX, u64::from));
+    let total = from.len() as f64;
+    let rest = n.saturating_sub(floor * strata.len());
+    let exact: Vec<f64> = strata.iter().map(|(_, idx)| rest as f64 * idx.len() as f64 / total).collect();
+    let mut share: Vec<usize> = exact.iter().map(|e| e.floor() as usize).collect();
+    // Saturating: rounding could make the floors' sum exceed `rest` by one in a degenerate split.
+    let mut left = rest.saturating_sub(share.iter().sum::<usize>());
+    let mut order: Vec<usize> = (0..strata.len()).collect();
+    order.sort_by(|&a, &b| (exact[b] - exact[b].floor()).total_cmp(&(exact[a] - exact[a].floor())).then(a.cmp(&b)));
+    for &k in &order {
+        if left == 0 {
+            break;
+        }
+        share[k] += 1;
+        left -= 1;
+    }
+    let mut out = WeightedDraw::default();
+    for ((object, idx), &s) in strata.iter().zip(&share) {
+        let want = (floor + s).max(1);
+        let stratum_weight = idx.len() as f64 / total;
+        // Keyed by the stratum and the index within it: one stratum's draw does not depend on the others'.
+        let stratum_key = mix64(object.map_or(0, |o| u64::from(o) + 1));
+        if want >= idx.len() {
+            // The whole stratum, each pixel once.
+            for &j in idx {
+                out.samples.push(from[j]);
+                out.weights.push(stratum_weight / idx.len() as f64);
+            }
+        } else {
+            for i in 0..want as u64 {
+                let u = uniform(seed, stream, draw, stratum_key ^ i);
+                out.samples.push(from[idx[((u * idx.len() as f64) as usize).min(idx.len() - 1)]]);
+                out.weights.push(stratum_weight / want as f64);
+            }
+        }
+    }
+    let m = out.samples.len() as f64;
+    out.weights.iter_mut().for_each(|w| *w *= m);
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -172,6 +243,69 @@ mod tests {
             assert!(kept.windows(2).all(|w| key(&w[0]) < key(&w[1])), "kept samples out of order");
             assert!(rest.windows(2).all(|w| key(&w[0]) < key(&w[1])), "other samples out of order");
         }
+    }
+
+    /// Strata of 20 000, 2 000 and 20 pixels and 300 that see no object, 256 solve pixels with a floor of 32.
+    fn strata() -> Vec<Sample> {
+        let mut all = Vec::new();
+        for (k, n) in [(0u32, 20_000u32), (1, 2_000), (2, 20)] {
+            all.extend((0..n).map(|x| sample(k, x, Some(k))));
+        }
+        all.extend((0..300).map(|x| sample(9, x, None)));
+        all
+    }
+
+    /// Every stratum gets its floor (or all its pixels when it has fewer), the rest goes in proportion to the
+    /// strata's sizes, and each stratum's weights sum to its share of the population.
+    #[test]
+    fn the_stratified_draw_meets_every_floor_and_weighs_each_stratum_by_its_share() {
+        let all = strata();
+        let (n, floor) = (256, 32);
+        let d = draw_stratified(&all, n, floor, 5, draw::SOLVE_PIXELS, 0);
+        let m = d.samples.len();
+        assert_eq!(d.weights.len(), m);
+        // The 20-pixel object is taken whole (20 instead of its floor), the others get 32 + their share of
+        // 256 − 4·32 = 128: 114.70, 11.47, 0.11, 1.72 → 115, 11, 0, 2 by largest remainder.
+        let want = [(Some(0), 32 + 115), (Some(1), 32 + 11), (Some(2), 20), (None, 32 + 2)];
+        for (group, count) in want {
+            let got = d.samples.iter().filter(|s| s.object == group).count();
+            assert_eq!(got, count, "stratum {group:?}");
+            let share: f64 = d.samples.iter().zip(&d.weights).filter(|(s, _)| s.object == group).map(|(_, w)| w).sum();
+            let population = all.iter().filter(|s| s.object == group).count() as f64 / all.len() as f64;
+            // Sums of a few hundred f64 terms: equal to rounding.
+            assert!((share / m as f64 - population).abs() < 1e-12, "stratum {group:?}: {share} of {m}");
+        }
+        assert_eq!(m, 147 + 43 + 20 + 34);
+        // A floor larger than the budget: every stratum still gets it.
+        let d = draw_stratified(&all, 16, floor, 5, draw::SOLVE_PIXELS, 0);
+        assert_eq!(d.samples.len(), 32 + 32 + 20 + 32);
+    }
+
+    /// The weighted mean of a pixel function over the draw is an unbiased estimate of its mean over all pixels:
+    /// over 400 seeded draws the mean of the estimates lies within 4 standard errors of the population mean,
+    /// while the unweighted mean (which over-represents the small strata) is far from it.
+    #[test]
+    fn the_weighted_mean_over_the_stratified_draw_is_unbiased() {
+        let all = strata();
+        // A value that differs between strata and varies within them.
+        let f = |s: &Sample| f64::from(s.object.map_or(7, |o| 3 * o + 1)) + (s.pixel.x % 13) as f64 * 0.1;
+        let truth = all.iter().map(f).sum::<f64>() / all.len() as f64;
+        let draws = 400;
+        let (mut est, mut naive) = (Vec::new(), Vec::new());
+        for key in 0..draws {
+            let d = draw_stratified(&all, 256, 32, 11, draw::SOLVE_PIXELS, key);
+            let m = d.samples.len() as f64;
+            est.push(d.samples.iter().zip(&d.weights).map(|(s, w)| w * f(s)).sum::<f64>() / m);
+            naive.push(d.samples.iter().map(f).sum::<f64>() / m);
+        }
+        let mean = est.iter().sum::<f64>() / draws as f64;
+        let sd = (est.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (draws - 1) as f64).sqrt();
+        let se = sd / (draws as f64).sqrt();
+        // 4 standard errors: a false failure has probability < 1e-4; a bias of the size of the naive mean's
+        // (below) would be hundreds of them.
+        assert!((mean - truth).abs() < 4.0 * se, "weighted {mean} vs {truth} (se {se})");
+        let naive_mean = naive.iter().sum::<f64>() / draws as f64;
+        assert!((naive_mean - truth).abs() > 100.0 * se, "unweighted {naive_mean} vs {truth}");
     }
 
     /// The kept pixels are a uniform sample: with a budget of half an object's pixels, each photo of 64

@@ -85,6 +85,8 @@ pub fn profile(
         cols: &cols,
         target: &target,
         second: None,
+        weights: None,
+        groups: None,
         penalty: &zeros,
         prox: &zeros,
         anchor: &zeros,

@@ -219,10 +219,13 @@ pub fn choose_models(
             }
         }
         if glossy.iter().any(|&g| g) {
-            // With the lobes in place, `specular_trial_steps` Gauss–Newton steps on emission and base colour
-            // (lobes fixed), averaged over their second half like the refinement: the diffuse-only refinement
-            // had given the glossy floor's reflected light to the other surfaces (glossy fixture: ceiling
-            // albedo +5 %, light −2 %). Without steps, only the emission is re-solved.
+            // With the lobes in place, the emission is re-solved (materials fixed; the default), or
+            // `specular_trial_steps` Gauss–Newton steps re-fit emission and base colour (lobes fixed), averaged
+            // over their second half like the refinement. The steps were needed while the L1 refinement gave
+            // the glossy floor's reflected light to the other surfaces (light 2–5 % low); with the per-object
+            // Huber data term the refinement's light is right before the lobes, and the steps, which pin the
+            // light by the lobe's noisy specular strength, moved it by up to +10 %
+            // (docs/optim/design-measurements.md, "Solve pixels per object and the checker light").
             let steps = s.specular_trial_steps;
             let unknowns = if steps == 0 { Unknowns::Emission } else { Unknowns::EmissionAndBaseColor };
             let none = vec![false; k_count];
@@ -278,6 +281,8 @@ pub fn choose_models(
                     cols: &col,
                     target: &tgt,
                     second: None,
+                    weights: None,
+                    groups: None,
                     penalty: &[0.0],
                     prox: &[0.0],
                     anchor: &[0.0],

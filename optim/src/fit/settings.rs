@@ -43,14 +43,18 @@ pub struct ObjectFitSettings {
     pub huber_delta: f64,
     /// Emission L1 weight, relative: an object's emission e_k costs `emission_l1 · s_k · e_k`, with s_k the
     /// mean |∂I/∂e_k| over the solve pixels — i.e. how strongly that emission moves the loss (a hidden light's s_k is ~1e-4 of a visible wall's),
-    /// so one weight treats a visible wall and a hidden light alike.
+    /// so one weight treats a visible wall and a hidden light alike. It applies in the emission-only solves,
+    /// which choose the emitters; the joint Gauss–Newton steps keep the emitters they start from, unpenalised.
     pub emission_l1: f64,
     pub seed: u64,
     /// A checkpoint is handed out every this many iterations (Adam iterations and refinement steps).
     pub checkpoint_every: u32,
     /// The emission is re-solved in closed form every this many Adam iterations (0 = only at the start).
     pub emission_solve_every: u32,
-    /// Pixels in the closed-form emission solve and the Gauss–Newton refinement.
+    /// Pixels in the closed-form emission solve and the Gauss–Newton refinement: 32 per object (and for the
+    /// pixels that see no object), the rest in proportion to the objects' training pixels, each weighted by its
+    /// object's share of the training pixels (`fit::pixels::draw_stratified`); with more than
+    /// `solve_pixels / 32` objects a solve draws 32 per object, more than `solve_pixels`.
     pub solve_pixels: u32,
     /// Paths per pixel of each Jacobian column / value in the solves.
     pub solve_spp: u32,
@@ -67,7 +71,11 @@ pub struct ObjectFitSettings {
     /// Try a specular lobe per object and keep it when the held-out residual improves significantly.
     pub try_specular: bool,
     /// Gauss–Newton steps on emission and base colour after specular lobes were kept (lobes fixed; averaged
-    /// over the second half). The lobe itself comes from a roughness search ([`crate::fit::roughness`]).
+    /// over the second half); 0 = only the emission is re-solved (materials fixed). The lobe itself comes from a
+    /// roughness search ([`crate::fit::roughness`]). Default 0: the joint steps fit the light against the lobe's
+    /// specular strength, whose search noise (glossy floor 0.68–0.78 for a true 0.8) they turned into light
+    /// errors of up to 10 % (docs/optim/design-measurements.md, "Solve pixels per object and the checker
+    /// light").
     pub specular_trial_steps: u32,
 }
 
@@ -93,7 +101,7 @@ impl Default for ObjectFitSettings {
             holdout_pixels: 2048,
             holdout_spp: 512,
             try_specular: true,
-            specular_trial_steps: 4,
+            specular_trial_steps: 0,
         }
     }
 }
