@@ -1,6 +1,6 @@
 //! Small linear solves used by the fit: a box-constrained quadratic by projected coordinate descent, and an
-//! L1, per-group Huber or L2 data fit (with optional row weights) with per-variable linear penalties, box bounds and a proximal (Levenberg–Marquardt)
-//! term, by iteratively reweighted least squares (IRLS).
+//! L1, per-group Huber or L2 data fit (with optional row weights) with per-variable linear penalties, box
+//! bounds and a proximal (Levenberg–Marquardt) term, by iteratively reweighted least squares (IRLS).
 
 /// Which data term [`solve`] minimises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
