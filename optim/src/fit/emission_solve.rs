@@ -2,9 +2,10 @@
 //!
 //! - [`Unknowns::Emission`]: the closed-form emission solve. Radiance is linear in emission, so for fixed
 //!   materials `I_j = Σ_k J_jk e_k` exactly, with J from basis renders ([`super::jacobian`]); e ≥ 0 minimises
-//!   the data term (the object stage's per-object Huber, [`DataLoss::GroupHuber`], by IRLS) plus the relative emission penalty `λ Σ_k s_k e_k`, where
-//!   s_k = mean_j |J_jk| is how strongly object k's emission moves the loss. A single λ then treats a visible
-//!   wall (s ≈ its share of the pixels) and a hidden light (s ≈ 1e-4 of that) alike.
+//!   the data term (the object stage's per-object Huber, [`DataLoss::GroupHuber`], by IRLS) plus the relative
+//!   emission penalty `λ Σ_k s_k e_k`, where s_k = mean_j |J_jk| is how strongly object k's emission moves the
+//!   loss. A single λ then treats a visible wall (s ≈ its share of the pixels) and a hidden light (s ≈ 1e-4 of
+//!   that) alike.
 //! - [`Unknowns::EmissionAndBaseColor`]: one Gauss–Newton step on emission and base colour jointly, with a
 //!   Levenberg–Marquardt proximal term on base colour. Moving both together is what crosses the
 //!   albedo/emission scale valley that alternating or joint first-order steps creep along. The step keeps the
@@ -43,9 +44,9 @@ pub struct SolveOptions {
 }
 
 /// Updates emission (and base colour) of `x` in place from a solve on `samples` (with their row weights, see
-/// [`linear::Problem::weights`]) with `spp` paths per Jacobian entry, random numbers keyed by `iteration_key`. `free_base_color[k]` = object k's base colour is
-/// constrained by the photos (seen in enough pixels); other base colours are left as they are. Returns the
-/// mean per-channel L1 residual of the parameters before the update.
+/// [`linear::Problem::weights`]) with `spp` paths per Jacobian entry, random numbers keyed by `iteration_key`.
+/// `free_base_color[k]` = object k's base colour is constrained by the photos (seen in enough pixels); other base
+/// colours are left as they are. Returns the mean per-channel L1 residual of the parameters before the update.
 pub fn solve_step(
     ctx: &Ctx<'_>,
     x: &mut [f64],

@@ -23,10 +23,10 @@
 //!    roughness ([`roughness`]), on half of the object's training pixels, common random numbers — and kept only
 //!    when it lowers the residual on the other half plus the held-out pixels significantly (paired t > 3 and a
 //!    gain > 0.5 % of the mean radiance); with lobes kept, the emission is re-solved (or, with
-//!    `specular_trial_steps` > 0, Gauss–Newton steps re-fit emission and base colour). An emission term is kept only when it lowers the held-out residual
-//!    significantly. Objects seen in fewer than 16 training pixels are reported unconstrained. The decision,
-//!    its reason and `constrained` are in [`ObjectModel`] and go to `materials.json` (`model`, `why`,
-//!    `constrained`).
+//!    `specular_trial_steps` > 0, Gauss–Newton steps re-fit emission and base colour). An emission term is kept
+//!    only when it lowers the held-out residual significantly. Objects seen in fewer than 16 training pixels are
+//!    reported unconstrained. The decision, its reason and `constrained` are in [`ObjectModel`] and go to
+//!    `materials.json` (`model`, `why`, `constrained`).
 //!
 //! All randomness is keyed by (seed, iteration), so a run resumed from a [`FitState`] checkpoint gives the
 //! same result as an uninterrupted run (tests/fit_resume.rs).

@@ -1,5 +1,6 @@
 //! The solve helpers shared by the per-object loop ([`super::object`]) and model selection
-//! ([`super::select`]): the options of the linearised solves, the pixels each solve draws, and the pixel count below which an object's material is unconstrained.
+//! ([`super::select`]): the options of the linearised solves, the pixels each solve draws, and the pixel count
+//! below which an object's material is unconstrained.
 
 use super::emission_solve::{SolveOptions, Unknowns};
 use super::linear::DataLoss;
