@@ -103,6 +103,10 @@ struct BenchScaleArgs {
     /// Config override for every run (`--set object.holdout_pixels=512`).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Keep every point's scan, config and run under this directory (`<axis>-<value>/`), to rerun a point
+    /// stage by stage; by default they are deleted once measured.
+    #[arg(long, value_name = "DIR")]
+    keep: Option<PathBuf>,
     /// Workspace root holding `data-fixtures/`.
     #[arg(long)]
     workspace: Option<PathBuf>,
@@ -218,6 +222,7 @@ fn run_bench(what: BenchCommand) -> anyhow::Result<()> {
                 axes: a.axes,
                 quick: a.quick,
                 set: a.set,
+                keep: a.keep,
             };
             scale::run(&opts, |line| eprintln!("bench scale: {line}"))?;
             eprintln!("bench: wrote {}/scale.{{csv,svg,md}}", a.out.display());

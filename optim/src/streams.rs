@@ -65,6 +65,10 @@ pub mod key {
     pub const SOLVE: u64 = 1 << 32;
     /// Per-object fit: Gauss–Newton refinement step at `REFINE + step`.
     pub const REFINE: u64 = 2 << 32;
+    /// Per-object fit: the renders that check refinement step n ([`crate::fit::step_check`]) at
+    /// `REFINE_CHECK + n`, start and candidates with the same key (common random numbers). 2^24 above the
+    /// steps' own keys, below their second estimates' (XOR [`SECOND_ESTIMATE`]).
+    pub const REFINE_CHECK: u64 = REFINE + (1 << 24);
     /// Model selection: the base of its fields below (2^20 apart); object k's profile pixels at `SELECT + k`.
     pub const SELECT: u64 = 3 << 32;
     /// Model selection: the renders with and without the specular lobes (common random numbers).

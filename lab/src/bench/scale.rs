@@ -58,6 +58,8 @@ pub struct ScaleOptions {
     pub quick: bool,
     /// Config overrides for every run (`key=value`, as `pipeline run --set`).
     pub set: Vec<String>,
+    /// Keep each point's scan and run under this directory instead of deleting them.
+    pub keep: Option<PathBuf>,
 }
 
 /// One point of the sweep: which size it varies and the scene description at that size.
@@ -262,8 +264,19 @@ fn measure(p: Point, opts: &ScaleOptions, work: &Path) -> Result<Measured, Bench
         .map_err(|e| BenchError::Io { path: out.clone(), message: e.to_string() })?;
     let acc = super::metrics::accuracy(&built, &params);
     let triangles = built.mesh.triangles.len();
-    // The scan and run are large at the big points: only the numbers are kept.
-    let _ = std::fs::remove_dir_all(&dir);
+    // The scan and run are large at the big points: only the numbers are kept, unless asked otherwise.
+    match &opts.keep {
+        Some(keep) => {
+            let to = keep.join(format!("{}-{}", p.axis, p.value));
+            let _ = std::fs::remove_dir_all(&to);
+            std::fs::create_dir_all(keep)
+                .and_then(|()| std::fs::rename(&dir, &to))
+                .map_err(|e| BenchError::Io { path: to.clone(), message: e.to_string() })?;
+        }
+        None => {
+            let _ = std::fs::remove_dir_all(&dir);
+        }
+    }
     Ok(Measured {
         point: p,
         triangles,

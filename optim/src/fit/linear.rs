@@ -120,9 +120,17 @@ pub fn solve(p: &Problem<'_>, loss: DataLoss, x: &mut [f64], irls_iters: usize) 
     }
 }
 
+/// Huber's loss of residual `r` with corner `delta`, in the units of L1 ([`DataLoss::GroupHuber`]):
+/// r²/(2δ) within the corner, |r| − δ/2 beyond.
+#[must_use]
+pub fn huber(r: f64, delta: f64) -> f64 {
+    let a = r.abs();
+    if a <= delta { r * r / (2.0 * delta) } else { a - 0.5 * delta }
+}
+
 /// Per row, the Huber corner of its group ([`DataLoss::GroupHuber`]): the interquartile range of the group's
 /// residuals, at least `floor`. A group of fewer than 4 rows has no quartiles and keeps `floor` (L1).
-fn group_corners(r: &[f64], groups: Option<&[u32]>, floor: f64) -> Vec<f64> {
+pub fn group_corners(r: &[f64], groups: Option<&[u32]>, floor: f64) -> Vec<f64> {
     let group = |j: usize| groups.map_or(0, |g| g[j]);
     let mut members: std::collections::BTreeMap<u32, Vec<f64>> = std::collections::BTreeMap::new();
     for (j, v) in r.iter().enumerate() {

@@ -58,6 +58,7 @@ pub mod samples;
 pub mod select;
 pub mod settings;
 pub mod solve;
+pub mod step_check;
 
 pub use object::fit_objects;
 pub use settings::{AdamLoss, ObjectFitSettings};
@@ -100,6 +101,14 @@ pub struct IterationRecord {
     /// Base colour and emission of every object after the step.
     pub base_color: Vec<[f64; 3]>,
     pub emission: Vec<[f64; 3]>,
+    /// Fraction of a refinement step taken after its check ([`step_check`]): 1, a halving, or 0 when the
+    /// step was refused; 1 for Adam iterations (and in histories written before the check existed).
+    #[serde(default = "one")]
+    pub step_fraction: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// The fit's checkpoint: enough to continue exactly where it stopped.

@@ -9,7 +9,7 @@ use super::pixels::{self, Sample};
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
 use super::solve::{MIN_PIXELS, solve_options, solve_samples};
-use super::{FitError, FitInputs, FitOutcome, FitState, IterationRecord, ObjectFitSettings, select};
+use super::{FitError, FitInputs, FitOutcome, FitState, IterationRecord, ObjectFitSettings, select, step_check};
 use crate::streams::{draw, key};
 use glam::Vec3;
 use tracer::PixelRef;
@@ -75,6 +75,7 @@ pub(crate) fn record(x: &[f64], iteration: u32, phase: &str, loss: f64, lr: f64)
         lr,
         base_color: (0..n).map(|k| v3(k, BASE_COLOR)).collect(),
         emission: (0..n).map(|k| v3(k, EMISSION)).collect(),
+        step_fraction: 1.0,
     }
 }
 
@@ -230,8 +231,26 @@ pub fn fit_objects(
             let key = key::REFINE + u64::from(it);
             let samples = solve_samples(&sets, s, s.seed, key);
             let opts = solve_options(s, Unknowns::EmissionAndBaseColor);
+            let start = state.params.clone();
             let loss = solve_step(&ctx, &mut state.params, &samples, s.solve_spp, key, &free, &opts)?;
-            record(&state.params, it, "refine", loss, 0.0)
+            let check = step_check::check_step(
+                &ctx,
+                &start,
+                &mut state.params,
+                &samples,
+                s.solve_spp,
+                key::REFINE_CHECK + u64::from(it),
+            )?;
+            if check.fraction < 1.0 {
+                tracing::debug!(
+                    iteration = it,
+                    fraction = check.fraction,
+                    loss_start = check.loss_start,
+                    loss_taken = check.loss_taken,
+                    "refinement step shortened: the full step was significantly worse on its own pixels"
+                );
+            }
+            IterationRecord { step_fraction: check.fraction, ..record(&state.params, it, "refine", loss, 0.0) }
         };
         if !state.params.iter().all(|v| v.is_finite()) {
             return Err(FitError::NonFinite { what: "parameter", iteration: it });
