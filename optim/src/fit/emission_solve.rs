@@ -184,16 +184,6 @@ pub fn solve_on_columns(
     let weights: Vec<f64> = if weights.len() == m { weights.to_vec() } else { vec![1.0; m] };
     // Weighted mean over the rows: with the draw's weights, an unbiased estimate of the mean over all pixels.
     let wmean = |v: &mut dyn Iterator<Item = f64>| v.zip(&weights).map(|(a, w)| a * w).sum::<f64>() / m.max(1) as f64;
-    // Which emissions the pixels can see at all (see [`MIN_COLUMN_T`]).
-    let seen: Vec<bool> = (0..ne)
-        .map(|k| {
-            let t = column_t(&emission_cols.a[k], &emission_cols.b[k], &weights);
-            if t < MIN_COLUMN_T {
-                tracing::debug!(emitter = k, t, "emission held at 0: its column is not distinguishable from 0");
-            }
-            t >= MIN_COLUMN_T
-        })
-        .collect();
     let mut loss = 0.0;
     for c in 0..3 {
         let chan = |cols: &[Vec<[f64; 3]>], n: usize| -> Vec<Vec<f64>> {
@@ -220,7 +210,7 @@ pub fn solve_on_columns(
             let pred: f64 = (0..ne).map(|k| 0.5 * (cols[k][j] + cols2[k][j]) * var[k]).sum();
             loss += weights[j] * (t - pred).abs() / (3 * m.max(1)) as f64;
         }
-        for k in (0..ne).filter(|&k| emission_pinned.get(k).copied().unwrap_or(false) || !seen[k]) {
+        for k in (0..ne).filter(|&k| emission_pinned.get(k).copied().unwrap_or(false)) {
             hi[k] = 0.0;
             var[k] = 0.0;
         }
@@ -263,25 +253,6 @@ pub fn solve_on_columns(
     loss
 }
 
-/// Smallest t-statistic of an emission column for its emission to be solved for: below it the solve's pixels
-/// do not show that the object's light reaches them, and the emission is held at 0 for that solve. The
-/// instrumental-variable normal equations divide by the cross product of the column's two independent
-/// estimates, whose expectation is the squared noise-free column; for an object whose light reaches none of
-/// the drawn pixels (a box no photo sees, hidden under the light) that cross product is noise around 0 and the
-/// emission solved from it lands anywhere in its box: on the scale sweep's 8-box point the first emission solve
-/// put such a box at the bound (10⁶, 0, 0) and the refinement diverged around it
-/// (docs/optim/design-measurements.md, "Checked Gauss–Newton steps"). 3 is a one-sided 0.1 % false "seen"
-/// rate under a zero column; a light that reaches the pixels at all has t in the tens to hundreds.
-pub const MIN_COLUMN_T: f64 = 3.0;
-
-/// t-statistic of Σ_j w_j a_j·b_j over the rows (summed over the channels): the evidence that the column
-/// whose two independent estimates are `a` and `b` is not zero.
-fn column_t(a: &[[f64; 3]], b: &[[f64; 3]], weights: &[f64]) -> f64 {
-    let products: Vec<f64> =
-        a.iter().zip(b).zip(weights).map(|((x, y), w)| w * (x[0] * y[0] + x[1] * y[1] + x[2] * y[2])).collect();
-    super::select::paired_t(&products).1
-}
-
 /// Relaxed lasso over the first `n_emission` unknowns (the emissions): `problem` is solved with its penalty,
 /// which only selects which objects emit; on that support the emission is solved again without it. A penalty
 /// left on a true light shrinks it, and in the joint Gauss–Newton step that pull is a force along the
@@ -293,66 +264,4 @@ fn solve_relaxed_lasso(problem: Problem<'_>, n_emission: usize, opts: &SolveOpti
     let penalty: Vec<f64> =
         problem.penalty.iter().enumerate().map(|(i, &p)| if i < n_emission { 0.0 } else { p }).collect();
     linear::solve(&Problem { penalty: &penalty, hi: &hi, ..problem }, opts.loss, var, opts.irls_iters);
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::streams::uniform;
-
-    /// Two independent estimates of a column whose noise-free values are `mean(j)`, with uniform noise of
-    /// half-width `noise`, the same in every channel.
-    fn column(mean: impl Fn(usize) -> f64, noise: f64, m: usize, stream: u64) -> [Vec<[f64; 3]>; 2] {
-        std::array::from_fn(|e| {
-            (0..m)
-                .map(|j| {
-                    let v = mean(j) + noise * (2.0 * uniform(7, stream, e as u64, j as u64) - 1.0);
-                    [v; 3]
-                })
-                .collect()
-        })
-    }
-
-    /// A light seen by the rows is solved for; an object whose light reaches a single row, weakly (a pixel of
-    /// which a few paths reach a box no photo sees), keeps no emission, where the solve alone explained that
-    /// row's residual with an emission of thousands: the case behind a box at the bound on the scale sweep.
-    #[test]
-    fn an_emission_no_pixel_sees_is_held_at_zero() {
-        let m = 512;
-        let light = column(|j| 0.2 + 0.1 * (j % 5) as f64, 0.02, m, 1);
-        let unseen = column(|j| if j == 17 { 1e-3 } else { 0.0 }, 0.0, m, 2);
-        let truth = |j: usize| 10.0 * (0.2 + 0.1 * (j % 5) as f64);
-        // Row 17 is far brighter than the light explains (a pixel on a highlight or a lamp's edge).
-        let targets: Vec<glam::Vec3> =
-            (0..m).map(|j| glam::Vec3::splat((truth(j) + if j == 17 { 5.0 } else { 0.0 }) as f32)).collect();
-        let a = vec![light[0].clone(), unseen[0].clone()];
-        let b = vec![light[1].clone(), unseen[1].clone()];
-        assert!(column_t(&a[0], &b[0], &vec![1.0; m]) > 30.0);
-        assert!(column_t(&a[1], &b[1], &vec![1.0; m]) < MIN_COLUMN_T);
-        let mut emission = vec![[0.0; 3]; 2];
-        let opts = SolveOptions {
-            unknowns: Unknowns::Emission,
-            loss: DataLoss::GroupHuber,
-            emission_l1: 0.05,
-            damping: 0.1,
-            irls_iters: 20,
-        };
-        let none: Vec<Vec<[f64; 3]>> = Vec::new();
-        solve_on_columns(
-            Columns { a: &a, b: &b },
-            Columns { a: &none, b: &none },
-            &targets,
-            &[],
-            &[],
-            &mut emission,
-            &[],
-            &mut [],
-            &[],
-            &opts,
-        );
-        assert_eq!(emission[1], [0.0; 3], "{emission:?}");
-        for c in 0..3 {
-            assert!((emission[0][c] - 10.0).abs() < 0.5, "{emission:?}");
-        }
-    }
 }
