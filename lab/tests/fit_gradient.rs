@@ -15,7 +15,7 @@ fn gradient_t_stats(s: &ObjectFitSettings, draws: u64) -> Vec<f64> {
     let built = lab::synth::build(lab::synth::load_desc(&path).unwrap(), &path).unwrap();
     let images = lab::synth::photos(&built).unwrap();
     let k_count = built.desc.objects.len();
-    let sets = pixels::collect(&built.scene, &built.cameras, &images, k_count, 0.0, usize::MAX, 0);
+    let sets = pixels::collect(&built.scene, &built.cameras, &images, k_count, 0.0, usize::MAX, usize::MAX, 0);
     let b = 256;
     let mut samples: Vec<Vec<f64>> = Vec::new();
     for d in 0..draws {

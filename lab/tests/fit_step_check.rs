@@ -31,7 +31,7 @@ fn a_step_towards_the_truth_is_taken_and_a_harmful_one_is_cut_back() {
     let built = lab::synth::build(lab::synth::load_desc(&path).unwrap(), &path).unwrap();
     let images = lab::synth::photos(&built).unwrap();
     let k_count = built.desc.objects.len();
-    let sets = pixels::collect(&built.scene, &built.cameras, &images, k_count, 0.0, usize::MAX, 0);
+    let sets = pixels::collect(&built.scene, &built.cameras, &images, k_count, 0.0, usize::MAX, usize::MAX, 0);
     let draw = pixels::draw_stratified(&sets.train, 1024, 32, 3, optim::streams::draw::SOLVE_PIXELS, 1);
     let counter = SampleCounter::default();
     let ctx =

@@ -51,6 +51,9 @@ pub mod draw {
     /// Photometric calibration (the `preprocess` stage): the surface points whose photos are compared (keyed by
     /// the point's index and the coordinate drawn).
     pub const CALIBRATION_POINTS: u64 = 5;
+    /// Per-object fit: which training pixels an object's pool keeps when it has more than the budget (keyed by
+    /// the pixel; `crate::fit::pixels::collect`).
+    pub const TRAIN_POOL: u64 = 6;
     /// Per-triangle fit: the pixels of a light solve (keyed by its [`super::key::triangle`] key).
     pub const TRIANGLE_EMISSION_PIXELS: u64 = 0x7265;
     /// Per-triangle fit: the pixels of an Adam batch (keyed by its [`super::key::triangle`] key).

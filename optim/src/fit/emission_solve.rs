@@ -41,6 +41,22 @@ pub struct SolveOptions {
     /// Marquardt damping of base colour: prox_k = damping · mean_j (∂I_j/∂ρ_k)².
     pub damping: f64,
     pub irls_iters: usize,
+    /// Rows at which each basis render of an emission-only solve takes the solve's `spp` paths per row. A draw
+    /// with more rows (its floor of pixels per object passes `solve_pixels` beyond `solve_pixels / 32`
+    /// objects) takes proportionally fewer per row, at least 1: a basis render's paths — what an emission's
+    /// precision rests on — stay as they are, and the K basis renders of a solve over ~32·K rows cost K·const
+    /// paths instead of growing as K².
+    pub basis_rows: usize,
+}
+
+/// Paths per row of a basis render over `rows` rows: `spp` up to `basis_rows` rows, then the same total.
+#[must_use]
+pub fn basis_spp(spp: u32, basis_rows: usize, rows: usize) -> u32 {
+    if rows <= basis_rows || rows == 0 {
+        return spp;
+    }
+    let total = u64::from(spp) * basis_rows as u64;
+    (total.div_ceil(rows as u64)).clamp(1, u64::from(spp)) as u32
 }
 
 /// Updates emission (and base colour) of `x` in place from a solve on `samples` (with their row weights, see
@@ -93,6 +109,7 @@ pub fn solve_step_pinned(
             |r: &[jacobian::PixelRow]| -> Vec<Vec<[f64; 3]>> { r.iter().map(|row| row.base_color.clone()).collect() };
         (cols(&r1), cols(&r2), rho(&r1), rho(&r2))
     } else {
+        let spp = basis_spp(spp, opts.basis_rows, pixels.len());
         (
             jacobian::emission_columns(ctx, &params.materials, &pixels, spp, iteration_key)?,
             jacobian::emission_columns(ctx, &params.materials, &pixels, spp, key2)?,
@@ -264,4 +281,19 @@ fn solve_relaxed_lasso(problem: Problem<'_>, n_emission: usize, opts: &SolveOpti
     let penalty: Vec<f64> =
         problem.penalty.iter().enumerate().map(|(i, &p)| if i < n_emission { 0.0 } else { p }).collect();
     linear::solve(&Problem { penalty: &penalty, hi: &hi, ..problem }, opts.loss, var, opts.irls_iters);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::basis_spp;
+
+    #[test]
+    fn basis_renders_keep_their_paths_when_a_draw_has_more_rows() {
+        assert_eq!(basis_spp(128, 1024, 1024), 128);
+        assert_eq!(basis_spp(128, 1024, 500), 128);
+        // 57 objects × 32 rows: the same 131 072 paths per basis render, rounded up.
+        assert_eq!(basis_spp(128, 1024, 1856), 71);
+        // Never below one path per row.
+        assert_eq!(basis_spp(4, 1024, 1_000_000), 1);
+    }
 }

@@ -20,9 +20,26 @@ pub fn emission_columns(
     spp: u32,
     iteration_key: u64,
 ) -> Result<Vec<Vec<[f64; 3]>>, TracerError> {
+    emission_columns_of(ctx, materials, pixels, spp, iteration_key, &vec![true; materials.len()])
+}
+
+/// [`emission_columns`] for the objects with `wanted[k]` only; the others' columns are left empty. Each
+/// object's basis render draws the same random numbers whichever others are rendered, so a column does not
+/// depend on which columns are asked for.
+pub fn emission_columns_of(
+    ctx: &Ctx<'_>,
+    materials: &[tracer::Material],
+    pixels: &[PixelRef],
+    spp: u32,
+    iteration_key: u64,
+    wanted: &[bool],
+) -> Result<Vec<Vec<[f64; 3]>>, TracerError> {
     let k_count = materials.len();
     (0..k_count)
         .map(|k| {
+            if !wanted.get(k).copied().unwrap_or(false) {
+                return Ok(Vec::new());
+            }
             let mut emission = vec![glam::Vec3::ZERO; k_count];
             emission[k] = glam::Vec3::ONE;
             let params = tracer::Params { materials: materials.to_vec(), emission };

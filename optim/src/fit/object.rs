@@ -5,7 +5,7 @@ use super::adam::{AdamConfig, AdamState};
 use super::emission_solve::{Unknowns, solve_step};
 use super::jacobian::Ctx;
 use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
-use super::pixels::{self, Sample};
+use super::pixels::{self, PixelSets};
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
 use super::solve::{MIN_PIXELS, solve_options, solve_samples};
@@ -106,7 +106,7 @@ pub fn loss_weight(s: &ObjectFitSettings, d: Vec3, target: Vec3) -> Vec3 {
 pub(crate) fn adam_iteration(
     ctx: &Ctx<'_>,
     s: &ObjectFitSettings,
-    train: &[Sample],
+    train: &PixelSets,
     x: &mut [f64],
     adam: &mut AdamState,
     lr_mask: &[f64],
@@ -114,7 +114,7 @@ pub(crate) fn adam_iteration(
     key: u64,
 ) -> Result<f64, FitError> {
     let k_count = x.len() / PER_OBJECT;
-    let batch = pixels::draw(train, s.batch_pixels as usize, ctx.seed, draw::BATCH, key);
+    let batch = train.draw_train(s.batch_pixels as usize, ctx.seed, draw::BATCH, key);
     let pix: Vec<PixelRef> = batch.iter().map(|b| b.pixel).collect();
     let params = layout::to_params(x);
     let values = ctx.render(&params, &pix, s.n_value, key)?;
@@ -166,6 +166,7 @@ pub fn fit_objects(
         k_count,
         s.holdout_fraction,
         s.holdout_pixels as usize,
+        s.train_pool as usize,
         s.seed,
     );
     if sets.train.is_empty() {
@@ -211,8 +212,7 @@ pub fn fit_objects(
         let it = state.iteration + 1;
         let rec = if it <= s.iterations {
             let lr = learning_rate(s, it);
-            let loss =
-                adam_iteration(&ctx, s, &sets.train, &mut state.params, &mut state.adam, &lr_mask, lr, u64::from(it))?;
+            let loss = adam_iteration(&ctx, s, &sets, &mut state.params, &mut state.adam, &lr_mask, lr, u64::from(it))?;
             if s.emission_solve_every > 0 && it % s.emission_solve_every == 0 && it < s.iterations {
                 let key = key::SOLVE + u64::from(it);
                 let samples = solve_samples(&sets, s, s.seed, key);
@@ -311,7 +311,7 @@ pub fn fit_objects(
         per_object,
         traced_paths,
         discarded_samples,
-        train_pixels: sets.train.len(),
+        train_pixels: sets.train_total(),
         holdout_pixels: sets.holdout.len(),
     })
 }

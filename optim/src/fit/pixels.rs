@@ -1,6 +1,13 @@
 //! The pixels a fit uses: every valid pixel of every image with its target radiance and the object its centre
 //! sees, split once into a training set and a held-out set (for model decisions), and seeded batch draws.
 //!
+//! The training pixels are held as a pool, not in full: of each object's training pixels (and of those that
+//! see no object) at most `train_pool` are kept, a uniform sample, with the count of all of them. Every draw
+//! over the training pixels is a draw over all of them — a kept pixel stands for its object's count over its
+//! kept count — so the fit is the same in distribution, while memory stops growing with the photos: a house
+//! of 180 photos of 1280×1024 has 2.4·10⁸ valid pixels (7.5 GB as samples), of which a fit draws a few 10⁴.
+//! Below the budget nothing is left out and every draw is the one it always was.
+//!
 //! The held-out set is a budget, not a fraction of the photos: each pixel is a held-out candidate with
 //! probability `holdout_fraction`, and of an object's candidates (and of those that see no object) at most
 //! `holdout_pixels` are kept, chosen uniformly; the others train. A model decision's statistics need a
@@ -26,14 +33,139 @@ pub struct Sample {
 /// Training and held-out pixels.
 #[derive(Debug, Clone, Default)]
 pub struct PixelSets {
+    /// The training pool: every training pixel of a stratum below the pool budget, a uniform sample of the
+    /// budget's size of the others; in scan order (view, row, column), held-out candidates beyond their budget
+    /// after the rest.
     pub train: Vec<Sample>,
     pub holdout: Vec<Sample>,
-    /// Training pixels whose centre sees each object.
+    /// Training pixels in the photos (not only in the pool) whose centre sees each object.
     pub train_per_object: Vec<usize>,
+    /// The strata of the training pixels (objects in increasing order, then "no object"): how many the
+    /// photos hold and which pool entries are theirs.
+    pub strata: Vec<Stratum>,
 }
 
-/// Collects the valid pixels (mask ≠ 0 and finite RGB) of all images.
+/// One stratum of the training pixels: an object's, or those that see no object.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Stratum {
+    pub object: Option<u32>,
+    /// Training pixels of the stratum in the photos.
+    pub population: usize,
+    /// Indices into [`PixelSets::train`] of its pool entries, in pool order.
+    pub members: Vec<usize>,
+}
+
+impl PixelSets {
+    /// Training pixels in the photos (the pool holds all of them or a sample).
+    #[must_use]
+    pub fn train_total(&self) -> usize {
+        self.strata.iter().map(|s| s.population).sum()
+    }
+
+    /// `n` training pixels drawn uniformly with replacement from all training pixels of the photos, keyed by
+    /// (seed, stream, draw); with a complete pool exactly [`draw`] over `train`.
+    #[must_use]
+    pub fn draw_train(&self, n: usize, seed: u64, stream: u64, draw_key: u64) -> Vec<Sample> {
+        let total = self.train_total();
+        if total == self.train.len() || self.strata.is_empty() {
+            return draw(&self.train, n, seed, stream, draw_key);
+        }
+        // Pixel number v of the photos' training pixels (strata in order) is the stratum's kept entry at the
+        // same relative position: the kept entries are a uniform sample, so this is a uniform draw.
+        let mut starts = Vec::with_capacity(self.strata.len());
+        let mut acc = 0usize;
+        for s in &self.strata {
+            starts.push(acc);
+            acc += s.population;
+        }
+        (0..n as u64)
+            .map(|i| {
+                let u = uniform(seed, stream, draw_key, i);
+                let v = ((u * total as f64) as usize).min(total - 1);
+                let k = starts.partition_point(|&st| st <= v) - 1;
+                let st = &self.strata[k];
+                let j = ((v - starts[k]) * st.members.len() / st.population).min(st.members.len() - 1);
+                self.train[st.members[j]]
+            })
+            .collect()
+    }
+
+    /// [`draw_stratified`] over all training pixels of the photos: the strata's shares and weights follow their
+    /// counts in the photos, the pixels come from the pool.
+    #[must_use]
+    pub fn draw_train_stratified(&self, n: usize, floor: usize, seed: u64, stream: u64, draw_key: u64) -> WeightedDraw {
+        draw_strata(&self.train, &self.strata, n, floor, seed, stream, draw_key)
+    }
+}
+
+/// A pixel offered to a [`Pool`]: ordered by its seeded rank, then by its position in the scan.
+#[derive(Debug, Clone, Copy)]
+struct Ranked {
+    rank: f64,
+    seq: u64,
+    sample: Sample,
+}
+
+impl PartialEq for Ranked {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == std::cmp::Ordering::Equal
+    }
+}
+impl Eq for Ranked {}
+impl PartialOrd for Ranked {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Ranked {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.rank.total_cmp(&other.rank).then(self.seq.cmp(&other.seq))
+    }
+}
+
+/// Per stratum, the `cap` offered pixels of smallest rank (a uniform sample when the ranks are seeded
+/// uniforms), kept in one pass: memory `cap` per stratum whatever is offered.
+struct Pool {
+    cap: usize,
+    heaps: std::collections::BTreeMap<Option<u32>, std::collections::BinaryHeap<Ranked>>,
+}
+
+impl Pool {
+    fn new(cap: usize) -> Self {
+        Pool { cap, heaps: std::collections::BTreeMap::new() }
+    }
+
+    /// Offers `r`; returns the pixel that does not fit (`r` itself or the one it displaces), if any.
+    fn offer(&mut self, r: Ranked) -> Option<Ranked> {
+        let heap = self.heaps.entry(r.sample.object).or_default();
+        if heap.len() < self.cap {
+            heap.push(r);
+            return None;
+        }
+        match heap.peek() {
+            Some(top) if r < *top => {
+                let out = heap.pop();
+                heap.push(r);
+                out
+            }
+            _ => Some(r),
+        }
+    }
+
+    /// Everything kept, in scan order (`seq`).
+    fn into_sorted(self) -> Vec<Ranked> {
+        let mut all: Vec<Ranked> = self.heaps.into_values().flat_map(std::collections::BinaryHeap::into_vec).collect();
+        all.sort_by_key(|r| r.seq);
+        all
+    }
+}
+
+/// Collects the valid pixels (mask ≠ 0 and finite RGB) of all images: each is a held-out candidate with
+/// probability `holdout_fraction`, of which at most `holdout_pixels` per object are held out (the rest train),
+/// and of the training pixels at most `train_pool` per object are kept (see the module docs). One pass, with
+/// memory bounded by the budgets.
 #[must_use]
+#[allow(clippy::too_many_arguments)]
 pub fn collect(
     scene: &tracer::Scene,
     cameras: &[tracer::Camera],
@@ -41,43 +173,65 @@ pub fn collect(
     objects: usize,
     holdout_fraction: f64,
     holdout_pixels: usize,
+    train_pool: usize,
     seed: u64,
 ) -> PixelSets {
-    let mut sets = PixelSets { train_per_object: vec![0; objects], ..Default::default() };
+    // Held-out candidates beyond their object's budget train after every other pixel (the order the sets
+    // always had): their scan position is offset by this.
+    const REJECTED: u64 = 1 << 62;
+    let mut holdout = Pool::new(holdout_pixels);
+    let mut train = Pool::new(train_pool.max(1));
+    let mut population: std::collections::BTreeMap<Option<u32>, usize> = std::collections::BTreeMap::new();
+    let mut to_train = |r: Ranked, population: &mut std::collections::BTreeMap<Option<u32>, usize>| {
+        *population.entry(r.sample.object).or_default() += 1;
+        let rank = uniform(seed, draw::TRAIN_POOL, pixel_key(r.sample.pixel), 0);
+        let _ = train.offer(Ranked { rank, ..r });
+    };
+    let mut seq = 0u64;
     for (view, (cam, img)) in cameras.iter().zip(images).enumerate() {
         for (x, y, t) in valid_pixels(cam, img) {
             let (o, d) = cam.ray(Vec2::new(x as f32, y as f32));
             let object = scene.intersect(o, d, f32::INFINITY).map(|(hit, _)| scene.material_of(hit.tri));
             let pixel = PixelRef { view: view as u32, x, y };
-            let s = Sample { pixel, target: t, object };
+            let sample = Sample { pixel, target: t, object };
             let key = pixel_key(pixel);
+            seq += 1;
             if uniform(seed, draw::HOLDOUT, key, 0) < holdout_fraction {
-                sets.holdout.push(s);
-            } else {
-                if let Some(k) = object
-                    && (k as usize) < objects
-                {
-                    sets.train_per_object[k as usize] += 1;
+                let rank = uniform(seed, draw::HOLDOUT, key, 1);
+                if let Some(out) = holdout.offer(Ranked { rank, seq, sample }) {
+                    to_train(Ranked { seq: REJECTED + out.seq, ..out }, &mut population);
                 }
-                sets.train.push(s);
+            } else {
+                to_train(Ranked { rank: 0.0, seq, sample }, &mut population);
             }
         }
     }
-    let candidates = std::mem::take(&mut sets.holdout);
-    let rank = |s: &Sample| uniform(seed, draw::HOLDOUT, pixel_key(s.pixel), 1);
-    let (kept, rejected) = cap_per_object(candidates, holdout_pixels, rank);
-    sets.holdout = kept;
-    // Candidates beyond an object's budget train, appended after the others (a deterministic order; below the
-    // budget nothing moves, so small scans keep exactly the sets they always had).
-    for s in rejected {
-        if let Some(k) = s.object
+    let mut sets = PixelSets { train_per_object: vec![0; objects], ..Default::default() };
+    sets.holdout = holdout.into_sorted().into_iter().map(|r| r.sample).collect();
+    sets.train = train.into_sorted().into_iter().map(|r| r.sample).collect();
+    for (&object, &n) in &population {
+        if let Some(k) = object
             && (k as usize) < objects
         {
-            sets.train_per_object[k as usize] += 1;
+            sets.train_per_object[k as usize] = n;
         }
-        sets.train.push(s);
     }
+    sets.strata = strata_of(&sets.train, |object| population.get(&object).copied().unwrap_or(0));
     sets
+}
+
+/// The strata of `from` in a fixed order (by object, "no object" last), with the population of each.
+fn strata_of(from: &[Sample], population: impl Fn(Option<u32>) -> usize) -> Vec<Stratum> {
+    let mut groups: HashMap<Option<u32>, Vec<usize>> = HashMap::new();
+    for (i, s) in from.iter().enumerate() {
+        groups.entry(s.object).or_default().push(i);
+    }
+    let mut strata: Vec<Stratum> = groups
+        .into_iter()
+        .map(|(object, members)| Stratum { object, population: population(object).max(members.len()), members })
+        .collect();
+    strata.sort_by_key(|s| s.object.map_or(u64::MAX, u64::from));
+    strata
 }
 
 /// Splits `samples` into at most `per_object` samples per object (and per "no object"), those with the
@@ -156,21 +310,27 @@ pub struct WeightedDraw {
 /// minimises in expectation.
 #[must_use]
 pub fn draw_stratified(from: &[Sample], n: usize, floor: usize, seed: u64, stream: u64, draw: u64) -> WeightedDraw {
-    if from.is_empty() {
+    let strata = strata_of(from, |_| 0);
+    draw_strata(from, &strata, n, floor, seed, stream, draw)
+}
+
+/// [`draw_stratified`] on given strata of `from`: shares and weights follow each stratum's `population`, the
+/// pixels come from its `members`.
+fn draw_strata(
+    from: &[Sample],
+    strata: &[Stratum],
+    n: usize,
+    floor: usize,
+    seed: u64,
+    stream: u64,
+    draw: u64,
+) -> WeightedDraw {
+    if from.is_empty() || strata.is_empty() {
         return WeightedDraw::default();
     }
-    // Strata in a fixed order (by object, "no object" last) so that the draw is a pure function of its key.
-    let mut strata: Vec<(Option<u32>, Vec<usize>)> = {
-        let mut groups: HashMap<Option<u32>, Vec<usize>> = HashMap::new();
-        for (i, s) in from.iter().enumerate() {
-            groups.entry(s.object).or_default().push(i);
-        }
-        groups.into_iter().collect()
-    };
-    strata.sort_by_key(|(o, _)| o.map_or(u64::MAX, u64::from));
-    let total = from.len() as f64;
+    let total = strata.iter().map(|s| s.population).sum::<usize>() as f64;
     let rest = n.saturating_sub(floor * strata.len());
-    let exact: Vec<f64> = strata.iter().map(|(_, idx)| rest as f64 * idx.len() as f64 / total).collect();
+    let exact: Vec<f64> = strata.iter().map(|s| rest as f64 * s.population as f64 / total).collect();
     let mut share: Vec<usize> = exact.iter().map(|e| e.floor() as usize).collect();
     // Saturating: rounding could make the floors' sum exceed `rest` by one in a degenerate split.
     let mut left = rest.saturating_sub(share.iter().sum::<usize>());
@@ -184,13 +344,14 @@ pub fn draw_stratified(from: &[Sample], n: usize, floor: usize, seed: u64, strea
         left -= 1;
     }
     let mut out = WeightedDraw::default();
-    for ((object, idx), &s) in strata.iter().zip(&share) {
+    for (stratum, &s) in strata.iter().zip(&share) {
+        let idx = &stratum.members;
         let want = (floor + s).max(1);
-        let stratum_weight = idx.len() as f64 / total;
+        let stratum_weight = stratum.population as f64 / total;
         // Keyed by the stratum and the index within it: one stratum's draw does not depend on the others'.
-        let stratum_key = mix64(object.map_or(0, |o| u64::from(o) + 1));
+        let stratum_key = mix64(stratum.object.map_or(0, |o| u64::from(o) + 1));
         if want >= idx.len() {
-            // The whole stratum, each pixel once.
+            // The whole stratum (or its whole pool), each pixel once.
             for &j in idx {
                 out.samples.push(from[j]);
                 out.weights.push(stratum_weight / idx.len() as f64);
@@ -320,5 +481,69 @@ mod tests {
             // Hypergeometric, close to binomial(200, 1/2): σ ≈ 7.1; 5σ ≈ 35.
             assert!((c - 100.0).abs() < 35.0, "photo {v}: {c} of 200 kept");
         }
+    }
+
+    /// A pool of 500 pixels per stratum for strata of 20 000, 2 000 and 20 pixels and 300 that see no object.
+    fn pooled() -> (Vec<Sample>, PixelSets) {
+        let all = strata();
+        let mut pool = Pool::new(500);
+        let mut population: HashMap<Option<u32>, usize> = HashMap::new();
+        for (seq, s) in all.iter().enumerate() {
+            *population.entry(s.object).or_default() += 1;
+            let rank = uniform(4, draw::TRAIN_POOL, pixel_key(s.pixel), 0);
+            let _ = pool.offer(Ranked { rank, seq: seq as u64, sample: *s });
+        }
+        let train: Vec<Sample> = pool.into_sorted().into_iter().map(|r| r.sample).collect();
+        let strata = strata_of(&train, |o| population[&o]);
+        (all, PixelSets { train, strata, ..Default::default() })
+    }
+
+    /// The pool keeps the budget of each stratum (all of a smaller one), in scan order, and knows the counts.
+    #[test]
+    fn the_pool_keeps_its_budget_per_stratum_in_scan_order() {
+        let (all, sets) = pooled();
+        assert_eq!(sets.train.len(), 500 + 500 + 20 + 300);
+        assert_eq!(sets.train_total(), all.len());
+        let pos = |s: &Sample| all.iter().position(|a| a == s).unwrap();
+        assert!(sets.train.windows(2).all(|w| pos(&w[0]) < pos(&w[1])));
+        let pops: Vec<(Option<u32>, usize, usize)> =
+            sets.strata.iter().map(|s| (s.object, s.population, s.members.len())).collect();
+        assert_eq!(pops, vec![(Some(0), 20_000, 500), (Some(1), 2_000, 500), (Some(2), 20, 20), (None, 300, 300)]);
+    }
+
+    /// Drawn from the pool, the training pixels of each stratum come in proportion to its count in the photos
+    /// (not in the pool): 200 000 draws, each stratum's frequency within 5 binomial σ of its share.
+    #[test]
+    fn draws_from_a_pool_are_uniform_over_all_training_pixels() {
+        let (all, sets) = pooled();
+        let n = 200_000;
+        let d = sets.draw_train(n, 9, draw::BATCH, 3);
+        for st in &sets.strata {
+            let p = st.population as f64 / all.len() as f64;
+            let got = d.iter().filter(|s| s.object == st.object).count() as f64;
+            let sigma = (n as f64 * p * (1.0 - p)).sqrt();
+            assert!((got - n as f64 * p).abs() < 5.0 * sigma.max(1.0), "{:?}: {got} for {}", st.object, n as f64 * p);
+        }
+        // The stratified draw weighs each stratum by its share of the photos' pixels.
+        let w = sets.draw_train_stratified(256, 32, 5, draw::SOLVE_PIXELS, 0);
+        let m = w.samples.len() as f64;
+        for st in &sets.strata {
+            let share: f64 =
+                w.samples.iter().zip(&w.weights).filter(|(s, _)| s.object == st.object).map(|(_, x)| x).sum();
+            let p = st.population as f64 / all.len() as f64;
+            assert!((share / m - p).abs() < 1e-12, "{:?}: {} for {p}", st.object, share / m);
+        }
+    }
+
+    /// With every pixel kept, the draws are exactly those over the plain list.
+    #[test]
+    fn a_complete_pool_draws_as_the_plain_list() {
+        let all = strata();
+        let sets = PixelSets { train: all.clone(), strata: strata_of(&all, |_| 0), ..Default::default() };
+        assert_eq!(sets.draw_train(300, 2, draw::BATCH, 7), draw(&all, 300, 2, draw::BATCH, 7));
+        assert_eq!(
+            sets.draw_train_stratified(256, 32, 5, draw::SOLVE_PIXELS, 1),
+            draw_stratified(&all, 256, 32, 5, draw::SOLVE_PIXELS, 1)
+        );
     }
 }

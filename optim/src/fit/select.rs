@@ -235,13 +235,23 @@ pub fn choose_models(
     }
 
     // Emission test: radiance is linear in emission, so the render without object k's emission is the render
-    // with it minus J_k e_k — one set of basis renders answers every object.
+    // with it minus J_k e_k — one set of basis renders answers every object. Only the objects that emit need
+    // theirs (the others add nothing to the emitted light and are not tested): the test pixels grow with the
+    // number of objects (a budget each), so rendering every object's column would cost objects² renders.
     let params = layout::to_params(&x);
-    let je = jacobian::emission_columns(ctx, &params.materials, &pix, s.solve_spp, key::SELECT_EMISSION_COLUMNS)?;
+    let emitting: Vec<bool> = (0..k_count).map(|k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).collect();
+    let je = jacobian::emission_columns_of(
+        ctx,
+        &params.materials,
+        &pix,
+        s.solve_spp,
+        key::SELECT_EMISSION_COLUMNS,
+        &emitting,
+    )?;
     let pred: Vec<[f64; 3]> = (0..test.len())
         .map(|j| {
             let mut p = [0.0; 3];
-            for k in 0..k_count {
+            for k in (0..k_count).filter(|&k| emitting[k]) {
                 for c in 0..3 {
                     p[c] += je[k][j][c] * x[idx(k, EMISSION + c)];
                 }

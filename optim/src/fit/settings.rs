@@ -57,7 +57,10 @@ pub struct ObjectFitSettings {
     /// object's share of the training pixels (`fit::pixels::draw_stratified`); with more than
     /// `solve_pixels / 32` objects a solve draws 32 per object, more than `solve_pixels`.
     pub solve_pixels: u32,
-    /// Paths per pixel of each Jacobian column / value in the solves.
+    /// Paths per pixel of each Jacobian column / value in the solves; a solve that draws more than
+    /// `solve_pixels` rows (32 per object) renders its emission columns with `solve_spp · solve_pixels` paths
+    /// in all, fewer per row, so that their cost grows linearly with the objects
+    /// ([`crate::fit::emission_solve::basis_spp`]).
     pub solve_spp: u32,
     /// Gauss–Newton refinement steps on base colour and emission after the Adam phase.
     pub refine_steps: u32,
@@ -66,6 +69,12 @@ pub struct ObjectFitSettings {
     /// Largest number of held-out pixels per object (and of the training pixels that join an object's lobe
     /// test): the decisions need a sample of fixed size, not a fraction of the photos.
     pub holdout_pixels: u32,
+    /// Largest number of training pixels kept per object (and of those that see no object), a uniform sample
+    /// of its pixels; every draw over the training pixels still draws over all of them, each kept pixel
+    /// standing for its object's pixel count over its kept count (`fit::pixels`). The fit draws a few 10⁴
+    /// training pixels in all, so a pool of 16 384 per object is seldom drawn twice from, while memory stops
+    /// growing with the photos (32 bytes per kept pixel).
+    pub train_pool: u32,
     /// Paths per pixel of the held-out renders that decide each object's model: the decision compares the
     /// residuals of two renders pixel by pixel, so their own noise must be well below the effect tested.
     pub holdout_spp: u32,
@@ -100,6 +109,7 @@ impl Default for ObjectFitSettings {
             refine_steps: 8,
             holdout_fraction: 0.1,
             holdout_pixels: 2048,
+            train_pool: 16_384,
             holdout_spp: 512,
             try_specular: true,
             specular_trial_steps: 0,

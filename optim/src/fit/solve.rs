@@ -4,7 +4,7 @@
 
 use super::emission_solve::{SolveOptions, Unknowns};
 use super::linear::DataLoss;
-use super::pixels::{self, PixelSets, WeightedDraw};
+use super::pixels::{PixelSets, WeightedDraw};
 use super::settings::ObjectFitSettings;
 use crate::streams::draw;
 
@@ -30,6 +30,7 @@ pub(crate) fn solve_options(s: &ObjectFitSettings, unknowns: Unknowns) -> SolveO
         emission_l1: s.emission_l1,
         damping: GN_DAMPING,
         irls_iters: IRLS_ITERS,
+        basis_rows: s.solve_pixels as usize,
     }
 }
 
@@ -46,5 +47,5 @@ pub(crate) const SOLVE_FLOOR: usize = 32;
 /// in proportion to the objects' training pixels, weighted so that every solve's data term is an unbiased
 /// estimate of the loss over all training pixels ([`pixels::draw_stratified`]).
 pub(crate) fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> WeightedDraw {
-    pixels::draw_stratified(&sets.train, s.solve_pixels as usize, SOLVE_FLOOR, seed, draw::SOLVE_PIXELS, key)
+    sets.draw_train_stratified(s.solve_pixels as usize, SOLVE_FLOOR, seed, draw::SOLVE_PIXELS, key)
 }

@@ -372,6 +372,7 @@ mod tests {
             emission_l1: 0.0,
             damping: LIGHT_DAMPING,
             irls_iters: 1,
+            basis_rows: usize::MAX,
         };
         let cols = |x: &'_ [Vec<[f64; 3]>], y: &'_ [Vec<[f64; 3]>]| (x.to_vec(), y.to_vec());
         let (ea, eb) = cols(&[ja], &[ja2]);

@@ -105,6 +105,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             objects.len(),
             plan.object.holdout_fraction.max(EXPONENT_HOLDOUT_FRACTION),
             plan.object.holdout_pixels as usize,
+            plan.object.train_pool as usize,
             plan.object.seed,
         );
         let m = optim::photometric::render_misfit(
