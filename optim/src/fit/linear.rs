@@ -83,10 +83,32 @@ pub fn solve(p: &Problem<'_>, loss: DataLoss, x: &mut [f64], irls_iters: usize) 
     let mean_abs = (0..m).map(|j| row_weight(j) * p.target[j].abs()).sum::<f64>() / m as f64;
     let floor = (0.01 * mean_abs).max(f64::MIN_POSITIVE);
     let rounds = if loss == DataLoss::L2 { 1 } else { irls_iters.max(1) };
-    let mut w: Vec<f64> = (0..m).map(row_weight).collect();
-    let mut a = vec![0.0; n * n];
-    let mut b = vec![0.0; n];
     let (cols2, target2) = p.second.unwrap_or((p.cols, p.target));
+    // The variables the box leaves free: one fixed at 0 (an emission pinned off) stays there and adds nothing.
+    let active: Vec<usize> = (0..n).filter(|&i| !(p.lo[i] == 0.0 && p.hi[i] == 0.0 && x[i] == 0.0)).collect();
+    let na = active.len();
+    // Each row's non-zero entries among them (sparse rows: an object's columns vanish on most pixels of a
+    // large scan). The normal equations are summed row by row over these only, which adds exactly the terms
+    // the dense sums add (the others are 0) in the same order, at Σ_j nnz_j² instead of n²·m per round:
+    // a 213-object house spent 60 % of its Gauss–Newton steps in the dense sums.
+    let mut row_start = Vec::with_capacity(m + 1);
+    let mut entries: Vec<(usize, f64, f64)> = Vec::new();
+    for j in 0..m {
+        row_start.push(entries.len());
+        for (ai, &i) in active.iter().enumerate() {
+            let (c, d) = (p.cols[i][j], cols2[i][j]);
+            if c != 0.0 || d != 0.0 {
+                entries.push((ai, c, d));
+            }
+        }
+    }
+    row_start.push(entries.len());
+    let mut w: Vec<f64> = (0..m).map(row_weight).collect();
+    let mut a = vec![0.0; na * na];
+    let mut b = vec![0.0; na];
+    let lo: Vec<f64> = active.iter().map(|&i| p.lo[i]).collect();
+    let hi: Vec<f64> = active.iter().map(|&i| p.hi[i]).collect();
+    let mut xa: Vec<f64> = active.iter().map(|&i| x[i]).collect();
     for _ in 0..rounds {
         if loss != DataLoss::L2 {
             let r: Vec<f64> = (0..m)
@@ -103,20 +125,30 @@ pub fn solve(p: &Problem<'_>, loss: DataLoss, x: &mut [f64], irls_iters: usize) 
             }
         }
         a.iter_mut().for_each(|v| *v = 0.0);
-        for i in 0..n {
-            let (ci, di) = (&p.cols[i], &cols2[i]);
-            b[i] = (0..m).map(|j| 0.5 * w[j] * (ci[j] * target2[j] + di[j] * p.target[j])).sum::<f64>() / m as f64
-                - p.penalty[i]
-                + p.prox[i] * p.anchor[i];
-            for k in i..n {
-                let (ck, dk) = (&p.cols[k], &cols2[k]);
-                let v = (0..m).map(|j| 0.5 * w[j] * (ci[j] * dk[j] + di[j] * ck[j])).sum::<f64>() / m as f64;
-                a[i * n + k] = v;
-                a[k * n + i] = v;
+        b.iter_mut().for_each(|v| *v = 0.0);
+        for j in 0..m {
+            let row = &entries[row_start[j]..row_start[j + 1]];
+            for (e, &(ii, ci, di)) in row.iter().enumerate() {
+                b[ii] += 0.5 * w[j] * (ci * target2[j] + di * p.target[j]);
+                for &(kk, ck, dk) in &row[e..] {
+                    a[ii * na + kk] += 0.5 * w[j] * (ci * dk + di * ck);
+                }
             }
-            a[i * n + i] += p.prox[i];
         }
-        box_qp(&a, &b, p.lo, p.hi, x, 20_000);
+        for ii in 0..na {
+            let i = active[ii];
+            b[ii] = b[ii] / m as f64 - p.penalty[i] + p.prox[i] * p.anchor[i];
+            for kk in ii..na {
+                let v = a[ii * na + kk] / m as f64;
+                a[ii * na + kk] = v;
+                a[kk * na + ii] = v;
+            }
+            a[ii * na + ii] += p.prox[i];
+        }
+        box_qp(&a, &b, &lo, &hi, &mut xa, 20_000);
+        for (ii, &i) in active.iter().enumerate() {
+            x[i] = xa[ii];
+        }
     }
 }
 
