@@ -179,6 +179,8 @@ impl optim::Progress for Step<'_> {
 
     fn set_message(&self, message: &str) {
         self.bar.set_message(message.to_owned());
+        // A long phase without steps (model selection's last renders) is then named in the log as it starts.
+        self.maybe_log();
     }
 
     fn note(&self, line: &str) {

@@ -179,6 +179,7 @@ pub fn choose_models(
         }
         // Common random numbers for both renders: the paired differences then carry little path noise.
         let key = key::SELECT_LOBE_TEST;
+        progress.set_message(&format!("lobe test: {} pixels", lobe_test.len()));
         let lobe_pix: Vec<PixelRef> = lobe_test.iter().map(|t| t.pixel).collect();
         let render = |v: &[f64]| ctx.render(&layout::to_params(v), &lobe_pix, s.holdout_spp, key);
         let (i_d, i_t) = (render(&x)?, render(&xt)?);
@@ -240,11 +241,21 @@ pub fn choose_models(
     // number of objects (a budget each), so rendering every object's column would cost objects² renders.
     let params = layout::to_params(&x);
     let emitting: Vec<bool> = (0..k_count).map(|k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).collect();
+    progress.set_message(&format!(
+        "emission test: {} emitters on {} pixels",
+        emitting.iter().filter(|&&e| e).count(),
+        pix.len()
+    ));
+    // Each column over all test pixels (a budget per object, so ~2048·K of them) gets the paths of one
+    // object's budget at `solve_spp`, fewer per pixel on a large scan: the columns' cost then grows with
+    // the emitters, not with emitters × objects (a 213-object house spent over 15 minutes here at 128
+    // paths per pixel). The emission test's paired differences carry that noise, so it can only make the
+    // test keep fewer emissions, never more.
     let je = jacobian::emission_columns_of(
         ctx,
         &params.materials,
         &pix,
-        s.solve_spp,
+        super::emission_solve::basis_spp(s.solve_spp, s.holdout_pixels as usize, pix.len()),
         key::SELECT_EMISSION_COLUMNS,
         &emitting,
     )?;
