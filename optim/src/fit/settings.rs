@@ -71,9 +71,11 @@ pub struct ObjectFitSettings {
     pub holdout_pixels: u32,
     /// Largest number of training pixels kept per object (and of those that see no object), a uniform sample
     /// of its pixels; every draw over the training pixels still draws over all of them, each kept pixel
-    /// standing for its object's pixel count over its kept count (`fit::pixels`). The fit draws a few 10⁴
-    /// training pixels in all, so a pool of 16 384 per object is seldom drawn twice from, while memory stops
-    /// growing with the photos (32 bytes per kept pixel).
+    /// standing for its object's pixel count over its kept count (`fit::pixels`), and memory stops growing
+    /// with the photos (32 bytes per kept pixel). The default, 2²⁰, pools no object of any scene measured so
+    /// far: a pool of 16 384 moved the hidden uplight of the corpus's `room-textured` from 5 % to ×2.3–4.4 in
+    /// one run (docs/optim/design-measurements.md, "Costs at house scale"), and whether that is the pool or
+    /// the draw's luck on a near-degenerate direction is not measured yet.
     pub train_pool: u32,
     /// Paths per pixel of the held-out renders that decide each object's model: the decision compares the
     /// residuals of two renders pixel by pixel, so their own noise must be well below the effect tested.
@@ -109,7 +111,7 @@ impl Default for ObjectFitSettings {
             refine_steps: 8,
             holdout_fraction: 0.1,
             holdout_pixels: 2048,
-            train_pool: 16_384,
+            train_pool: 1 << 20,
             holdout_spp: 512,
             try_specular: true,
             specular_trial_steps: 0,
