@@ -76,12 +76,8 @@ pub fn solve(p: &Problem<'_>, loss: DataLoss, x: &mut [f64], irls_iters: usize) 
     if n == 0 || m == 0 {
         return;
     }
-    // IRLS floor: residuals below 1 % of the mean |target| are weighted as if they were that size (a Huber
-    // corner), which keeps the weights bounded when a residual vanishes and is far below the 5–10 % noise of
-    // a pixel estimated with tens of paths.
     let row_weight = |j: usize| p.weights.map_or(1.0, |w| w[j]);
-    let mean_abs = (0..m).map(|j| row_weight(j) * p.target[j].abs()).sum::<f64>() / m as f64;
-    let floor = (0.01 * mean_abs).max(f64::MIN_POSITIVE);
+    let floor = corner_floor((0..m).map(|j| row_weight(j) * p.target[j].abs()).sum::<f64>() / m as f64);
     let rounds = if loss == DataLoss::L2 { 1 } else { irls_iters.max(1) };
     let (cols2, target2) = p.second.unwrap_or((p.cols, p.target));
     // The variables the box leaves free: one fixed at 0 (an emission pinned off) stays there and adds nothing.
@@ -150,6 +146,15 @@ pub fn solve(p: &Problem<'_>, loss: DataLoss, x: &mut [f64], irls_iters: usize) 
             x[i] = xa[ii];
         }
     }
+}
+
+/// The smallest corner of the IRLS weights (L1 and Huber) for a data term whose weighted mean |target| is
+/// `mean_abs_target`: residuals below 1 % of it are weighted as if they were that size (a Huber corner), which
+/// keeps the weights bounded when a residual vanishes and is far below the 5–10 % noise of a pixel estimated
+/// with tens of paths.
+#[must_use]
+pub fn corner_floor(mean_abs_target: f64) -> f64 {
+    (0.01 * mean_abs_target).max(f64::MIN_POSITIVE)
 }
 
 /// Huber's loss of residual `r` with corner `delta`, in the units of L1 ([`DataLoss::GroupHuber`]):

@@ -18,7 +18,7 @@
 
 use super::jacobian::Ctx;
 use super::layout;
-use super::linear::{group_corners, huber};
+use super::linear::{corner_floor, group_corners, huber};
 use super::pixels::WeightedDraw;
 use super::select::paired_t;
 use tracer::{PixelRef, TracerError};
@@ -62,11 +62,11 @@ pub fn check_step(
     };
     let v0 = ctx.render(&layout::to_params(start), &pixels, spp, key)?;
     let r0: [Vec<f64>; 3] = std::array::from_fn(|c| residuals(&v0, c));
-    // The solve's IRLS floor (linear::solve): corners no smaller than 1 % of the mean |target| of the channel.
+    // The solve's corners: per object, no smaller than the solve's floor for the channel.
     let corners: [Vec<f64>; 3] = std::array::from_fn(|c| {
         let mean_abs =
             draw.samples.iter().zip(&weights).map(|(s, w)| w * f64::from(s.target[c]).abs()).sum::<f64>() / m as f64;
-        group_corners(&r0[c], Some(&groups), (0.01 * mean_abs).max(f64::MIN_POSITIVE))
+        group_corners(&r0[c], Some(&groups), corner_floor(mean_abs))
     });
     let per_row = |r: &[Vec<f64>; 3]| -> Vec<f64> {
         (0..m).map(|j| weights[j] * (0..3).map(|c| huber(r[c][j], corners[c][j])).sum::<f64>()).collect()
