@@ -58,6 +58,9 @@ pub mod draw {
     pub const TRIANGLE_EMISSION_PIXELS: u64 = 0x7265;
     /// Per-triangle fit: the pixels of an Adam batch (keyed by its [`super::key::triangle`] key).
     pub const TRIANGLE_BATCH: u64 = 0x7269;
+    /// Per-triangle fit: which pixels a triangle keeps when it has more than its budget (keyed by the pixel;
+    /// `crate::triangle::pixels::collect`).
+    pub const TRIANGLE_PIXELS: u64 = 0x7270;
 }
 
 /// Key spaces of the tracer's `iteration` argument. The per-object fit's keys lie below 4·2^32, the

@@ -3,7 +3,8 @@
 //! - Messages (`[stage] line`) go to stderr and, with a timestamp, to `<output>/run.log`.
 //! - Progress is an `indicatif` bar with an ETA when stderr is a terminal. Every [`LOG_EVERY`] a line with
 //!   the position and the ETA (`[object] fit: 37/212, 1m12s left`) also goes to the run log, and to stderr
-//!   when stderr is not a terminal (a redirected run still shows where it is and when it will end).
+//!   when stderr is not a terminal (a redirected run still shows where it is and when it will end); a step
+//!   that enters a new phase (a message with a new first word) writes that line at once.
 
 use std::fs::File;
 use std::io::{IsTerminal, Write};
@@ -122,8 +123,13 @@ struct Step<'a> {
 
 impl Step<'_> {
     fn maybe_log(&self) {
+        self.log_unless_recent(false);
+    }
+
+    /// Writes the position line when [`LOG_EVERY`] has passed since the last one, or at once with `now`.
+    fn log_unless_recent(&self, now: bool) {
         let Ok(mut last) = self.last_logged.lock() else { return };
-        if last.elapsed() < LOG_EVERY {
+        if !now && last.elapsed() < LOG_EVERY {
             return;
         }
         *last = Instant::now();
@@ -178,9 +184,13 @@ impl optim::Progress for Step<'_> {
     }
 
     fn set_message(&self, message: &str) {
+        // A new phase (its message's first word changes: "loss 0.0123" → "lobe test: …") is logged as it
+        // starts, since it may run for minutes without a step (model selection's last renders); a message
+        // that only updates a figure waits for the next periodic line.
+        let phase = |m: &str| m.split_whitespace().next().unwrap_or("").to_owned();
+        let new_phase = phase(&self.bar.message()) != phase(message);
         self.bar.set_message(message.to_owned());
-        // A long phase without steps (model selection's last renders) is then named in the log as it starts.
-        self.maybe_log();
+        self.log_unless_recent(new_phase);
     }
 
     fn note(&self, line: &str) {

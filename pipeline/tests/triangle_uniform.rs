@@ -75,8 +75,10 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     // for texture). Measured: see docs/optim/design-measurements.md.
     let mut state = out.clone();
     let scene = state.scene().unwrap();
-    let pix = pixels::collect(&scene, &built.cameras, &images);
-    let fitted = ratio::fit_round(&inputs, &scene, &pix, &mut state, config.rounds + 1).unwrap();
+    let n = state.triangles.len();
+    let pix = pixels::collect(&scene, &built.cameras, &images, n, config.pixels_per_triangle as usize, config.seed);
+    let pix = pix.samples;
+    let fitted = ratio::fit_round(&inputs, &scene, &pix, &mut state, config.rounds + 1, &optim::NoProgress).unwrap();
     let ev = split::evidence(state.triangles.len(), &pix, &fitted);
     let p: Vec<f64> = ev.iter().zip(&fitted.free).filter(|(_, f)| **f).filter_map(|(e, _)| e.map(|e| e.p)).collect();
     let m = p.len() as f64;
@@ -86,4 +88,48 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     // 226 are testable on this scene; far fewer would mean the pixel collection broke and the count says little.
     assert!(m > 100.0, "only {m} triangles testable");
     assert!(below <= 0.05 * m + 4.0 * (0.05 * 0.95 * m).sqrt(), "{below} of {m} triangles with p < 0.05");
+}
+
+/// The per-triangle pixel budget: every triangle keeps at most the budget, a triangle within it keeps all its
+/// pixels, the kept pixels are a subset of all pixels in the same order, and the split's footprint counts
+/// (pixel centres in the best view) are those of all pixels whatever the budget.
+#[test]
+fn the_pixel_budget_bounds_every_triangle_and_keeps_the_footprint_counts() {
+    let (built, images) = common::synth_scene("demo", 16);
+    let start = lab::synth::true_triangle_start(&built).unwrap();
+    let scene = start.scene().unwrap();
+    let n = start.triangles.len();
+    let all = pixels::collect(&scene, &built.cameras, &images, n, usize::MAX, 0);
+    let budget = 8;
+    let capped = pixels::collect(&scene, &built.cameras, &images, n, budget, 0);
+    assert_eq!(all.seen, all.samples.len() as u64);
+    assert_eq!(capped.seen, all.seen);
+    assert_eq!(capped.best_view, all.best_view);
+    let count = |s: &[pixels::TriSample]| {
+        let mut c = vec![0usize; n];
+        for x in s {
+            c[x.tri as usize] += 1;
+        }
+        c
+    };
+    let (c_all, c_cap) = (count(&all.samples), count(&capped.samples));
+    let mut over = 0;
+    for t in 0..n {
+        assert_eq!(c_cap[t], c_all[t].min(budget), "triangle {t}: {} of {} pixels kept", c_cap[t], c_all[t]);
+        over += usize::from(c_all[t] > budget);
+    }
+    assert!(over > 0, "no triangle has more than {budget} pixels: the budget was not exercised");
+    // A subset, in (view, row, column) order.
+    let key = |s: &pixels::TriSample| (s.pixel.view, s.pixel.y, s.pixel.x);
+    assert!(capped.samples.windows(2).all(|w| key(&w[0]) < key(&w[1])));
+    let full: std::collections::HashSet<_> = all.samples.iter().map(key).collect();
+    assert!(capped.samples.iter().all(|s| full.contains(&key(s))));
+    // Per view, the best view's count is the largest count of any view.
+    for t in 0..n {
+        let mut per_view = std::collections::HashMap::new();
+        for s in all.samples.iter().filter(|s| s.tri as usize == t) {
+            *per_view.entry(s.pixel.view).or_insert(0u32) += 1;
+        }
+        assert_eq!(all.best_view[t], per_view.values().copied().max().unwrap_or(0));
+    }
 }

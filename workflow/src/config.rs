@@ -255,6 +255,8 @@ pub struct TriangleConfig {
     pub fit_steps: u32,
     /// Paths per pixel of the renders of every fit step and of the split test.
     pub spp: u32,
+    /// Budget: pixels per triangle per round (a uniform sample of its pixels when it has more).
+    pub pixels_per_triangle: u32,
     /// Adam iterations per fit after the closed-form steps (batches of `object.batch_pixels` pixels,
     /// `object.n_value`/`object.n_grad` paths, the object stage's loss); 0 = closed form only.
     pub adam_iterations: u32,
@@ -287,6 +289,10 @@ impl Default for TriangleConfig {
             rounds: 3,
             fit_steps: 3,
             spp: 32,
+            // 256 pixels give a triangle's ratio update a relative standard error of σ/16 and each would-be
+            // child of the split test ~64 pixels; the fixtures' triangles have fewer, so only scans at house
+            // resolution are sampled (measured in docs/scale/README.md).
+            pixels_per_triangle: 256,
             adam_iterations: 0,
             adam_lr: 0.01,
             smoothness: 0.1,

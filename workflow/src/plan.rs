@@ -225,6 +225,8 @@ fn validate(c: &Config) -> Result<(), Invalid> {
 
     let g = &c.triangle;
     at_least_one("triangle.spp", g.spp)?;
+    // The split test compares a triangle's four would-be children.
+    rule(g.pixels_per_triangle >= 4, "triangle.pixels_per_triangle", "≥ 4", g.pixels_per_triangle)?;
     positive("triangle.adam_lr", g.adam_lr)?;
     non_negative("triangle.smoothness", g.smoothness)?;
     rule(

@@ -243,12 +243,26 @@ pub fn cap_per_object(
     per_object: usize,
     rank: impl Fn(&Sample) -> f64,
 ) -> (Vec<Sample>, Vec<Sample>) {
+    cap_per_object_each(samples, |_| per_object, rank)
+}
+
+/// [`cap_per_object`] with a cap of its own for each object, `cap(object)`.
+#[must_use]
+pub fn cap_per_object_each(
+    samples: Vec<Sample>,
+    cap: impl Fn(Option<u32>) -> usize,
+    rank: impl Fn(&Sample) -> f64,
+) -> (Vec<Sample>, Vec<Sample>) {
     let mut groups: HashMap<Option<u32>, Vec<usize>> = HashMap::new();
     for (i, s) in samples.iter().enumerate() {
         groups.entry(s.object).or_default().push(i);
     }
     let mut keep = vec![true; samples.len()];
-    for idx in groups.values_mut().filter(|g| g.len() > per_object) {
+    for (object, idx) in &groups {
+        let per_object = cap(*object);
+        if idx.len() <= per_object {
+            continue;
+        }
         let ranks: Vec<f64> = idx.iter().map(|&i| rank(&samples[i])).collect();
         let mut order: Vec<usize> = (0..idx.len()).collect();
         order.sort_by(|&a, &b| ranks[a].total_cmp(&ranks[b]).then(a.cmp(&b)));

@@ -263,6 +263,7 @@ pub fn refine_light(
         let mut averaged: Vec<Vec<DVec3>> = Vec::new();
         for i in 0..LIGHT_STEPS {
             let pass = cycle * LIGHT_STEPS + i + 1;
+            progress.set_message(&format!("round {round}: light step {}/{LIGHT_STEPS} of cycle {}", i + 1, cycle + 1));
             let scale = solve_light(inputs, scene, samples, state, &emitters, &free, round, pass, &mut work)?;
             for (c, s) in cumulative.iter_mut().zip(&scale) {
                 *c *= *s;
@@ -315,7 +316,7 @@ pub fn refine_light(
                 m.base_color = (base[t].as_dvec3() * s).as_vec3().clamp(Vec3::ZERO, Vec3::ONE);
             }
         }
-        let mut f = fit_pass(inputs, scene, samples, state, round, cycle + 1)?;
+        let mut f = fit_pass(inputs, scene, samples, state, round, cycle + 1, progress)?;
         if let Some(prev) = fitted.take() {
             f.loss.splice(0..0, prev.loss);
             f.traced_paths += prev.traced_paths;

@@ -7,9 +7,11 @@
 //! # Method
 //! - **Scene**: material slot = triangle, emitter slot = object; rebuilt with the tracer's one builder
 //!   ([`tracer::Scene::new`]) after every split.
-//! - **Pixels** ([`pixels`]): every valid pixel of every prepared view whose centre ray hits the mesh, with the
-//!   triangle and the would-be child (4-way split) its centre lies in, and whether the whole pixel footprint
-//!   (centre and 4 corners) lies inside that triangle ("interior").
+//! - **Pixels** ([`pixels`]): the valid pixels of every prepared view whose centre ray hits the mesh, at most
+//!   `pixels_per_triangle` per triangle (a uniform sample; the budget that bounds a round's cost by the
+//!   triangles, not by the photos' pixels), with the triangle and the would-be child (4-way split) its centre
+//!   lies in, and whether the whole pixel footprint (centre and 4 corners) lies inside that triangle
+//!   ("interior").
 //! - **Fit** ([`ratio`]): a closed-form multiplicative update per triangle. A diffuse triangle's radiance is
 //!   linear in its own base colour (a planar triangle does not light itself), so with the current value ρ,
 //!   the photo sum T and the rendered sum R over its pixels, ρ·T/R is the value that matches them; repeated
@@ -171,6 +173,9 @@ pub struct TriangleSettings {
     pub fit_steps: u32,
     /// Paths per pixel of the renders of every fit step and of the split test.
     pub spp: u32,
+    /// Budget: pixels per triangle (a uniform sample of its pixels when it has more), so a round's renders
+    /// cost at most this × triangles pixels whatever the photos' number and resolution.
+    pub pixels_per_triangle: u32,
     /// Adam iterations per fit after the closed-form steps (batches of `object.batch_pixels` pixels,
     /// `object.n_value`/`object.n_grad` paths, the object stage's loss); 0 = closed form only.
     pub adam_iterations: u32,
@@ -273,6 +278,10 @@ fn check(config: &TriangleSettings) -> Result<(), TriangleError> {
     if config.spp == 0 {
         return bad("spp", "must be ≥ 1");
     }
+    if config.pixels_per_triangle < 4 {
+        // The split test compares a triangle's four would-be children: fewer pixels cannot show one.
+        return bad("pixels_per_triangle", "must be ≥ 4");
+    }
     if !(config.smoothness.is_finite() && config.smoothness >= 0.0) {
         return bad("smoothness", "must be finite and ≥ 0");
     }
@@ -283,6 +292,34 @@ fn check(config: &TriangleSettings) -> Result<(), TriangleError> {
         return bad("adam_lr", "must be finite and > 0");
     }
     Ok(())
+}
+
+/// The round's pixels within the per-triangle budget, with a note of how many the budget left out.
+fn collect_pixels(
+    inputs: &RoundInputs<'_>,
+    scene: &tracer::Scene,
+    state: &TriangleState,
+    round: u32,
+    progress: &dyn crate::Progress,
+) -> pixels::TriPixels {
+    let cfg = inputs.settings;
+    progress.set_message(&format!("round {round}: collecting the pixels of {} triangles", state.triangles.len()));
+    let pix = pixels::collect(
+        scene,
+        inputs.cameras,
+        inputs.images,
+        state.triangles.len(),
+        cfg.pixels_per_triangle as usize,
+        cfg.seed,
+    );
+    tracing::info!(round, kept = pix.samples.len(), seen = pix.seen, "triangle pixels");
+    progress.note(&format!(
+        "[triangle] round {round}: {} of {} pixels (at most {} per triangle)",
+        pix.samples.len(),
+        pix.seen,
+        cfg.pixels_per_triangle
+    ));
+    pix
 }
 
 /// Runs the remaining rounds of `state` (fit → split → … → fit). `on_round` receives the state after every
@@ -308,8 +345,8 @@ pub fn run_rounds(
         let round = state.rounds_done;
         let started = std::time::Instant::now();
         let scene = state.scene()?;
-        let pix = pixels::collect(&scene, inputs.cameras, inputs.images);
-        let fitted = ratio::fit_round(inputs, &scene, &pix, &mut state, round)?;
+        let pix = collect_pixels(inputs, &scene, &state, round, progress);
+        let fitted = ratio::fit_round(inputs, &scene, &pix.samples, &mut state, round, progress)?;
         let mut rec = RoundRecord {
             round,
             triangles: state.triangles.len(),
@@ -326,7 +363,7 @@ pub fn run_rounds(
         let mut stop = last;
         let mut applied = false;
         if !last {
-            let marks = split::choose(inputs, &state, &pix, &fitted);
+            let marks = split::choose(inputs, &state, &pix.samples, &pix.best_view, &fitted);
             rec.marked = marks.len();
             if marks.is_empty() {
                 stop = true;
@@ -347,12 +384,12 @@ pub fn run_rounds(
             // (A split that refined nothing leaves the mesh as it was; rebuilt anyway, to be safe.)
             let (scene, pix) = if applied {
                 let scene = state.scene()?;
-                let pix = pixels::collect(&scene, inputs.cameras, inputs.images);
+                let pix = collect_pixels(inputs, &scene, &state, round, progress);
                 (scene, pix)
             } else {
                 (scene, pix)
             };
-            if let Some(again) = light::refine_light(inputs, &scene, &pix, &mut state, round, progress)? {
+            if let Some(again) = light::refine_light(inputs, &scene, &pix.samples, &mut state, round, progress)? {
                 rec.loss.extend(again.loss);
             }
             rec.emission.clone_from(&state.emission);

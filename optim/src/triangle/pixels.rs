@@ -1,5 +1,6 @@
-//! The pixels of the per-triangle fit: every valid pixel whose centre ray hits the mesh, with the triangle
-//! and would-be child it hits, and whether its whole footprint lies on that triangle.
+//! The pixels of the per-triangle fit: the valid pixels whose centre ray hits the mesh, at most a budget per
+//! triangle (`triangle.pixels_per_triangle`), with the triangle and would-be child each hits, and whether its
+//! whole footprint lies on that triangle.
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -35,41 +36,107 @@ pub fn child_of(u: f32, v: f32) -> u8 {
     }
 }
 
-/// All valid pixels (mask ≠ 0, finite RGB) of all views that see the mesh, in (view, row, column) order.
+/// The pixels of one round: at most a budget per triangle, and per triangle the pixel centres in its best
+/// view (the split's footprint limit), counted before the budget.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriPixels {
+    /// In (view, row, column) order.
+    pub samples: Vec<TriSample>,
+    /// Per triangle: the most pixel centres on it in any one view.
+    pub best_view: Vec<u32>,
+    /// Valid pixels that hit the mesh, before the budget.
+    pub seen: u64,
+}
+
+/// Views whose pixels are traced at once: bounds the memory of the unbudgeted pixels in flight (a 1280×1024
+/// view is 1.3 M pixels of 32 bytes) while keeping every core busy.
+const VIEWS_IN_FLIGHT: usize = 8;
+
+/// The valid pixels (mask ≠ 0, finite RGB) of all views that see the mesh, at most `per_triangle` of them per
+/// triangle: a uniform sample of its pixels (the smallest ranks of a seeded uniform draw keyed by the pixel),
+/// so a round's renders cost at most `per_triangle` × triangles pixels whatever the photos' resolution and
+/// number. A triangle with fewer pixels keeps them all; with `per_triangle = usize::MAX` every pixel is kept.
 #[must_use]
 pub fn collect(
     scene: &tracer::Scene,
     cameras: &[tracer::Camera],
     images: &[ingest::photo::LinearImage],
-) -> Vec<TriSample> {
-    let per_view: Vec<Vec<TriSample>> = cameras
-        .par_iter()
-        .zip(images.par_iter())
-        .enumerate()
-        .map(|(view, (cam, img))| {
-            let mut out = Vec::new();
-            for (x, y, t) in crate::fit::pixels::valid_pixels(cam, img) {
-                let hit_at = |dx: f32, dy: f32| {
-                    let (o, d) = cam.ray(Vec2::new(x as f32 + dx, y as f32 + dy));
-                    scene.embree().intersect(o, d, 0.0, f32::INFINITY)
-                };
-                let Some(h) = hit_at(0.0, 0.0) else { continue };
-                // The pixel's footprint is the box ±½ around its centre (the tracer's box filter).
-                let interior = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
-                    .iter()
-                    .all(|&(dx, dy)| hit_at(dx, dy).is_some_and(|c| c.prim_id == h.prim_id));
-                out.push(TriSample {
-                    pixel: PixelRef { view: view as u32, x, y },
-                    target: t,
-                    tri: h.prim_id,
-                    child: child_of(h.u, h.v),
-                    interior,
-                });
+    triangles: usize,
+    per_triangle: usize,
+    seed: u64,
+) -> TriPixels {
+    let rank = |p: PixelRef| crate::streams::uniform(seed, crate::streams::draw::TRIANGLE_PIXELS, crate::streams::pixel_key(p), 0);
+    // Per triangle: the kept samples with their ranks, the largest kept rank (the bar a new pixel must pass
+    // once the triangle is full), and the running count in the current view.
+    let mut kept: Vec<Vec<(f64, TriSample)>> = vec![Vec::new(); triangles];
+    let mut bar = vec![f64::INFINITY; triangles];
+    let mut best_view = vec![0u32; triangles];
+    let mut current: Vec<(u32, u32)> = vec![(u32::MAX, 0); triangles];
+    let mut seen = 0u64;
+    let views: Vec<usize> = (0..cameras.len().min(images.len())).collect();
+    for chunk in views.chunks(VIEWS_IN_FLIGHT) {
+        let per_view: Vec<Vec<TriSample>> = chunk.par_iter().map(|&view| view_pixels(scene, &cameras[view], &images[view], view)).collect();
+        for s in per_view.into_iter().flatten() {
+            let t = s.tri as usize;
+            if t >= triangles {
+                continue;
             }
-            out
-        })
-        .collect();
-    per_view.into_iter().flatten().collect()
+            seen += 1;
+            let c = &mut current[t];
+            if c.0 == s.pixel.view {
+                c.1 += 1;
+            } else {
+                *c = (s.pixel.view, 1);
+            }
+            best_view[t] = best_view[t].max(c.1);
+            let list = &mut kept[t];
+            if list.len() < per_triangle {
+                list.push((rank(s.pixel), s));
+                if list.len() == per_triangle {
+                    bar[t] = list.iter().map(|k| k.0).fold(f64::NEG_INFINITY, f64::max);
+                }
+                continue;
+            }
+            let r = rank(s.pixel);
+            if r < bar[t] {
+                let worst = list.iter().enumerate().max_by(|a, b| a.1 .0.total_cmp(&b.1 .0)).map_or(0, |w| w.0);
+                list[worst] = (r, s);
+                bar[t] = list.iter().map(|k| k.0).fold(f64::NEG_INFINITY, f64::max);
+            }
+        }
+    }
+    let mut samples: Vec<TriSample> = kept.into_iter().flatten().map(|k| k.1).collect();
+    samples.sort_unstable_by_key(|s| (s.pixel.view, s.pixel.y, s.pixel.x));
+    TriPixels { samples, best_view, seen }
+}
+
+/// One view's valid pixels whose centre ray hits the mesh, in (row, column) order.
+fn view_pixels(
+    scene: &tracer::Scene,
+    cam: &tracer::Camera,
+    img: &ingest::photo::LinearImage,
+    view: usize,
+) -> Vec<TriSample> {
+    let mut out = Vec::new();
+    for (x, y, t) in crate::fit::pixels::valid_pixels(cam, img) {
+        let hit_at = |dx: f32, dy: f32| {
+            let (o, d) = cam.ray(Vec2::new(x as f32 + dx, y as f32 + dy));
+            scene.embree().intersect(o, d, 0.0, f32::INFINITY)
+        };
+        let Some(h) = hit_at(0.0, 0.0) else { continue };
+        // The pixel's footprint is the box ±½ around its centre (the tracer's box filter).
+        let interior = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
+            .iter()
+            .all(|&(dx, dy)| hit_at(dx, dy).is_some_and(|c| c.prim_id == h.prim_id));
+        out.push(TriSample {
+            pixel: PixelRef { view: view as u32, x, y },
+            target: t,
+            tri: h.prim_id,
+            child: child_of(h.u, h.v),
+            interior,
+        });
+    }
+    out
 }
 
 #[cfg(test)]

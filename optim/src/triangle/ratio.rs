@@ -242,8 +242,9 @@ pub fn fit_round(
     samples: &[TriSample],
     state: &mut TriangleState,
     round: u32,
+    progress: &dyn crate::Progress,
 ) -> Result<Fitted, TriangleError> {
-    fit_pass(inputs, scene, samples, state, round, 0)
+    fit_pass(inputs, scene, samples, state, round, 0, progress)
 }
 
 /// Pass `pass` of a round's fit: `fit_steps` ratio steps under the current light, random numbers keyed by
@@ -255,6 +256,7 @@ pub fn fit_pass(
     state: &mut TriangleState,
     round: u32,
     pass: u32,
+    progress: &dyn crate::Progress,
 ) -> Result<Fitted, TriangleError> {
     let cfg = inputs.settings;
     let n = state.triangles.len();
@@ -275,6 +277,13 @@ pub fn fit_pass(
     let mut work = tracer::TraceStats::default();
     let steps = cfg.fit_steps.max(1);
     for k in pass * steps..(pass + 1) * steps {
+        progress.set_message(&format!(
+            "round {round}: ratio step {}/{steps} of pass {pass}, {} triangles, {} pixels at {} paths",
+            k - pass * steps + 1,
+            n,
+            pix.len(),
+            cfg.spp
+        ));
         let params = state.params();
         let (values, stats) = tracer::Renderer::new(scene, &params, inputs.tracer)?.render_pixels(
             inputs.cameras,

@@ -136,18 +136,21 @@ pub fn evidence(triangles: usize, samples: &[TriSample], fitted: &Fitted) -> Vec
 /// The triangles to split: those whose children differ significantly after Holm's correction over every
 /// triangle tested in the round (family-wise level `split_significance`) and by more than `split_contrast`,
 /// smallest p first (then largest F), within the budget.
+///
+/// `best_view[t]`: triangle t's pixel centres in the view with the most of them (counted before the pixel
+/// budget, [`super::pixels::TriPixels::best_view`]).
 #[must_use]
-pub fn choose(inputs: &RoundInputs<'_>, state: &TriangleState, samples: &[TriSample], fitted: &Fitted) -> Vec<u32> {
+pub fn choose(
+    inputs: &RoundInputs<'_>,
+    state: &TriangleState,
+    samples: &[TriSample],
+    best_view: &[u32],
+    fitted: &Fitted,
+) -> Vec<u32> {
     let cfg = inputs.settings;
     let n = state.triangles.len();
     let ev = evidence(n, samples, fitted);
-    // Pixel centres per (triangle, view); the best view is the one with the most.
-    let views = inputs.cameras.len();
-    let mut per_view = vec![0u32; n * views.max(1)];
-    for s in samples {
-        per_view[s.tri as usize * views + s.pixel.view as usize] += 1;
-    }
-    let best = |t: usize| per_view[t * views..(t + 1) * views].iter().copied().max().unwrap_or(0);
+    let best = |t: usize| best_view.get(t).copied().unwrap_or(0);
     // Every triangle tested enters the correction, whatever its contrast: the family is the tests made.
     let tested: Vec<(usize, SplitEvidence)> = (0..n)
         .filter(|&t| fitted.free[t] && best(t) >= 4 * cfg.min_pixels.max(1))

@@ -81,6 +81,7 @@ impl From<&TriangleConfig> for TriangleSettings {
             rounds: c.rounds,
             fit_steps: c.fit_steps,
             spp: c.spp,
+            pixels_per_triangle: c.pixels_per_triangle,
             adam_iterations: c.adam_iterations,
             adam_lr: c.adam_lr,
             smoothness: c.smoothness,
