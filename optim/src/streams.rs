@@ -54,6 +54,9 @@ pub mod draw {
     /// Per-object fit: which training pixels an object's pool keeps when it has more than the budget (keyed by
     /// the pixel; `crate::fit::pixels::collect`).
     pub const TRAIN_POOL: u64 = 6;
+    /// Model selection: which of the test pixels an emitter's light reaches its emission test uses, when more
+    /// than the budget (keyed by the pixel and the object).
+    pub const EMISSION_TEST: u64 = 7;
     /// Per-triangle fit: the pixels of a light solve (keyed by its [`super::key::triangle`] key).
     pub const TRIANGLE_EMISSION_PIXELS: u64 = 0x7265;
     /// Per-triangle fit: the pixels of an Adam batch (keyed by its [`super::key::triangle`] key).
@@ -81,17 +84,25 @@ pub mod key {
     pub const SELECT_LOBE_TEST: u64 = SELECT + (1 << 20);
     /// Model selection: the averaged steps after the lobes were kept.
     pub const SELECT_SPECULAR_STEPS: u64 = SELECT + (2 << 20);
-    /// Model selection: the emission columns of the emission test.
+    /// Model selection: the emission test's pilot columns (where each emitter's light arrives).
     pub const SELECT_EMISSION_COLUMNS: u64 = SELECT + (3 << 20);
     /// Model selection: object k's roughness search at `SELECT_ROUGHNESS + k`.
     pub const SELECT_ROUGHNESS: u64 = SELECT + (4 << 20);
-    /// Model selection: the per-pixel base-colour rows of the emission refit.
+    /// Model selection: object k's base-colour column in its emission refit at `SELECT_PIXEL_ROWS + k`.
     pub const SELECT_PIXEL_ROWS: u64 = SELECT + (5 << 20);
     /// Model selection: the averaged steps of the emission refit.
     pub const SELECT_EMISSION_REFIT: u64 = SELECT + (6 << 20);
     /// Tone-curve exponent check after a fit ([`crate::photometric`]): its first render at `EXPONENT + round`,
     /// the second, independent one at `EXPONENT + round` XOR [`SECOND_ESTIMATE`].
     pub const EXPONENT: u64 = SELECT + (7 << 20);
+    /// Model selection: object k's emission test, the render of the fitted model at `SELECT_EMISSION_TEST + k`
+    /// and its emission column at `SELECT_EMISSION_TEST_COLUMN + k` (its base-colour column at
+    /// `SELECT_PIXEL_ROWS + k`).
+    pub const SELECT_EMISSION_TEST: u64 = SELECT + (8 << 20);
+    pub const SELECT_EMISSION_TEST_COLUMN: u64 = SELECT + (9 << 20);
+    /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
+    /// below it, the next field 2^20 above).
+    pub const SELECT_STEP_CHECK: u64 = 1 << 19;
     /// XORed into a solve's key for its second, independent Jacobian estimate (instrumental variables).
     pub const SECOND_ESTIMATE: u64 = 1 << 31;
     /// XORed into a roughness-profile point's key for its Jacobian (the value and its slope must not share

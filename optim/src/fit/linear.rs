@@ -187,6 +187,26 @@ pub fn group_corners(r: &[f64], groups: Option<&[u32]>, floor: f64) -> Vec<f64> 
     (0..r.len()).map(|j| corners[&group(j)]).collect()
 }
 
+/// Mean and t-statistic of paired differences.
+#[must_use]
+pub fn paired_t(d: &[f64]) -> (f64, f64) {
+    let n = d.len() as f64;
+    if d.len() < 2 {
+        return (d.first().copied().unwrap_or(0.0), 0.0);
+    }
+    let mean = d.iter().sum::<f64>() / n;
+    let var = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    let se = (var / n).sqrt();
+    let t = if se > 0.0 {
+        mean / se
+    } else if mean > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    };
+    (mean, t)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -270,5 +290,17 @@ mod tests {
         let huber = solve_one(50..100, DataLoss::GroupHuber);
         assert!((huber - 0.5).abs() < 0.01, "Huber with outliers {huber}");
         assert!((solve_one(50..100, DataLoss::L2) - 0.5).abs() > 1.0);
+    }
+
+    #[test]
+    fn paired_t_matches_the_textbook_formula() {
+        // d = 1, 2, 3, 4: mean 2.5, sample sd √(5/3), se = sd/2 → t = 2.5 / 0.6455 = 3.873.
+        let (mean, t) = paired_t(&[1.0, 2.0, 3.0, 4.0]);
+        assert!((mean - 2.5).abs() < 1e-12);
+        assert!((t - 2.5 / ((5.0f64 / 3.0).sqrt() / 2.0)).abs() < 1e-12);
+        // Symmetric differences: no evidence either way.
+        assert_eq!(paired_t(&[-1.0, 1.0, -2.0, 2.0]).1, 0.0);
+        // Too few samples: no t.
+        assert_eq!(paired_t(&[5.0]).1, 0.0);
     }
 }

@@ -5,7 +5,8 @@
 use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, idx};
-use super::linear;
+use super::linear::{self, paired_t};
+use super::step_check;
 use super::pixels::{PixelSets, Sample};
 use super::roughness;
 use super::solve::{self, solve_options, solve_samples};
@@ -35,32 +36,13 @@ const PROFILE_PIXELS: usize = 256;
 /// radiance, base colour change ≲ 0.005) cost nothing, while an emission that replaced albedo is undone.
 const REFIT_MATERIAL: f64 = 0.02;
 
-/// Mean and t-statistic of paired differences.
-#[must_use]
-pub fn paired_t(d: &[f64]) -> (f64, f64) {
-    let n = d.len() as f64;
-    if d.len() < 2 {
-        return (d.first().copied().unwrap_or(0.0), 0.0);
-    }
-    let mean = d.iter().sum::<f64>() / n;
-    let var = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    let se = (var / n).sqrt();
-    let t = if se > 0.0 {
-        mean / se
-    } else if mean > 0.0 {
-        f64::INFINITY
-    } else {
-        0.0
-    };
-    (mean, t)
-}
-
 /// Gauss–Newton steps on emission (and base colour, per `unknowns`) after a model change, each on freshly drawn
 /// solve pixels, with base colour and emission averaged over the second half of the steps (as the
 /// refinement's result is): the closing re-fits of the specular trial and of a dropped emission.
 struct AveragedSteps {
     unknowns: Unknowns,
-    /// Number of steps (≥ 1); step i ∈ 1..=steps uses random-number key `key + i`.
+    /// Number of steps (≥ 1); step i ∈ 1..=steps uses random-number key `key + i`, its check
+    /// `key + SELECT_STEP_CHECK + i`.
     steps: u32,
     key: u64,
 }
@@ -82,7 +64,14 @@ impl AveragedSteps {
         for step in 1..=self.steps {
             let key = self.key + u64::from(step);
             let samples = solve_samples(sets, s, ctx.seed, key);
+            let start = x.to_vec();
             solve_step_pinned(ctx, x, &samples, s.solve_spp, key, free, no_emission, &opts)?;
+            // Checked like the refinement's steps (`step_check`): unchecked, a re-fit after a dropped
+            // emission on Modern Hall took a wall's albedo from 0.89 to 0.11 and an unseen light ×4.
+            let check = step_check::check_step(ctx, &start, x, &samples, s.solve_spp, key + key::SELECT_STEP_CHECK)?;
+            if check.fraction < 1.0 {
+                tracing::debug!(step, fraction = check.fraction, "model-selection re-fit step shortened");
+            }
             if step > self.steps / 2 {
                 sum.iter_mut().zip(x.iter()).for_each(|(a, v)| *a += v);
                 n_avg += 1.0;
@@ -242,79 +231,105 @@ pub fn choose_models(
         }
     }
 
-    // Emission test: radiance is linear in emission, so the render without object k's emission is the render
-    // with it minus J_k e_k — one set of basis renders answers every object. Only the objects that emit need
-    // theirs (the others add nothing to the emitted light and are not tested): the test pixels grow with the
-    // number of objects (a budget each), so rendering every object's column would cost objects² renders.
+    // Emission test, per emitter k, on the test pixels its light reaches: a pilot basis render of every
+    // emitter's column over all test pixels (radiance is linear in emission: the column is ∂I/∂e_k) marks the
+    // pixels where k's light arrives; up to `holdout_pixels` of them (a seeded uniform draw) are rendered
+    // with the fitted model at `holdout_spp`, and k's column there at `solve_spp`, so the render without k's
+    // emission is the render minus J_k e_k. The pilot gets one object's path budget per column
+    // (`basis_spp`), a path or two per pixel on a house: enough to find where a light arrives, while testing
+    // on the pilot's own noisy columns dropped hidden lights (a house's uplights, t < 3 against 171 k pixels
+    // at 1.5 paths each). The pixels are chosen with the pilot's random numbers and tested with fresh ones.
     let params = layout::to_params(&x);
     let emitting: Vec<bool> = (0..k_count).map(|k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).collect();
-    progress.set_message(&format!(
-        "emission test: {} emitters on {} pixels",
-        emitting.iter().filter(|&&e| e).count(),
-        pix.len()
-    ));
-    // Each column over all test pixels (a budget per object, so ~2048·K of them) gets the paths of one
-    // object's budget at `solve_spp`, fewer per pixel on a large scan: the columns' cost then grows with
-    // the emitters, not with emitters × objects (a 213-object house spent over 15 minutes here at 128
-    // paths per pixel). The emission test's paired differences carry that noise, so it can only make the
-    // test keep fewer emissions, never more.
-    let je = jacobian::emission_columns_of(
-        ctx,
-        &params.materials,
-        &pix,
-        super::emission_solve::basis_spp(s.solve_spp, s.holdout_pixels as usize, pix.len()),
-        key::SELECT_EMISSION_COLUMNS,
-        &emitting,
-    )?;
-    let pred: Vec<[f64; 3]> = (0..test.len())
-        .map(|j| {
-            let mut p = [0.0; 3];
-            for k in (0..k_count).filter(|&k| emitting[k]) {
-                for c in 0..3 {
-                    p[c] += je[k][j][c] * x[idx(k, EMISSION + c)];
-                }
-            }
-            p
-        })
-        .collect();
-    // The model without an object's emission gets its own best base colour: a visible surface's emission and
-    // albedo both explain its brightness, and comparing at the albedo fitted *with* the emission favours
-    // keeping it. Measured on a room lit by a small lamp 1e4× brighter than the walls
-    // (tests/stability_extremes.rs): without the refit the ceiling kept an emission of 1.6e-4 of the lamp
-    // (held-out gain 1.1 %, t > 3) and an albedo 0.09–0.17 too dark. The refit is a 1-variable L1 fit per
-    // channel on the test pixels themselves, which if anything favours the smaller model.
-    // Only the free emitters' base-colour columns are needed, as sparse lists (a dense pixels × objects
-    // table of a house does not fit in memory).
-    let refit: Vec<bool> = (0..k_count).map(|k| free[k] && (0..3).any(|c| x[idx(k, EMISSION + c)] > 0.0)).collect();
-    let rho_cols = if refit.iter().any(|&r| r) {
-        jacobian::base_color_columns_of(ctx, &params, &pix, s.solve_spp, key::SELECT_PIXEL_ROWS, &refit)?
-    } else {
-        Vec::new()
-    };
+    let n_emitters = emitting.iter().filter(|&&e| e).count();
+    progress.set_message(&format!("emission test: {n_emitters} emitters on {} pixels", pix.len()));
+    let pilot_spp = super::emission_solve::basis_spp(s.solve_spp, budget, pix.len());
     let mut emits = vec![false; k_count];
     let mut material_refit = false;
+    let mut tested = 0;
     for k in 0..k_count {
         let e = [x[idx(k, EMISSION)], x[idx(k, EMISSION + 1)], x[idx(k, EMISSION + 2)]];
         if e.iter().all(|&v| v == 0.0) {
             why[k].push("no emission: the L1-penalised emission solve set it to 0".into());
             continue;
         }
+        tested += 1;
+        progress.set_message(&format!("emission test: emitter {tested}/{n_emitters}"));
+        let only_k: Vec<bool> = (0..k_count).map(|o| o == k).collect();
+        // One column at a time (a column does not depend on which others are rendered): emitters × test pixels
+        // of columns would not fit in memory on a house.
+        let pilot = jacobian::emission_columns_of(
+            ctx,
+            &params.materials,
+            &pix,
+            pilot_spp,
+            key::SELECT_EMISSION_COLUMNS,
+            &only_k,
+        )?
+        .swap_remove(k);
+        let lit: Vec<usize> = (0..test.len()).filter(|&j| pilot[j].iter().any(|&v| v != 0.0)).collect();
+        drop(pilot);
+        let rank = |j: usize| streams::uniform(ctx.seed, draw::EMISSION_TEST, streams::pixel_key(pix[j]), k as u64);
+        let mut on: Vec<usize> = lit.clone();
+        if on.len() > budget {
+            on.sort_by(|&a, &b| rank(a).total_cmp(&rank(b)).then(a.cmp(&b)));
+            on.truncate(budget);
+            on.sort_unstable();
+        }
+        if on.len() < 2 {
+            why[k].push(format!(
+                "emission {e:.4?} dropped: its light reaches {} {test_name} pixels, too few to test",
+                on.len()
+            ));
+            continue;
+        }
+        let px: Vec<PixelRef> = on.iter().map(|&j| pix[j]).collect();
+        let tgt: Vec<[f64; 3]> = on.iter().map(|&j| target(&test[j])).collect();
+        let pred: Vec<[f64; 3]> = ctx
+            .render(&params, &px, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
+            .iter()
+            .map(|v| v.as_dvec3().to_array())
+            .collect();
+        let jk = jacobian::emission_columns_of(
+            ctx,
+            &params.materials,
+            &px,
+            s.solve_spp,
+            key::SELECT_EMISSION_TEST_COLUMN + k as u64,
+            &only_k,
+        )?
+        .swap_remove(k);
         let mut without: Vec<[f64; 3]> =
-            (0..test.len()).map(|j| std::array::from_fn(|c| pred[j][c] - je[k][j][c] * e[c])).collect();
+            pred.iter().zip(&jk).map(|(p, j)| std::array::from_fn(|c| p[c] - j[c] * e[c])).collect();
+        // The model without an object's emission gets its own best base colour: a visible surface's emission
+        // and albedo both explain its brightness, and comparing at the albedo fitted *with* the emission
+        // favours keeping it. Measured on a room lit by a small lamp 1e4× brighter than the walls
+        // (tests/stability_extremes.rs): without the refit the ceiling kept an emission of 1.6e-4 of the lamp
+        // (held-out gain 1.1 %, t > 3) and an albedo 0.09–0.17 too dark. The refit is a 1-variable L1 fit per
+        // channel on the test pixels themselves, which if anything favours the smaller model.
         let mut delta = [0.0; 3];
-        if refit[k] {
+        if free[k] {
+            let rho_col = jacobian::base_color_columns_of(
+                ctx,
+                &params,
+                &px,
+                s.solve_spp,
+                key::SELECT_PIXEL_ROWS + k as u64,
+                &only_k,
+            )?
+            .swap_remove(k);
             for c in 0..3 {
-                let mut dense = vec![0.0; test.len()];
-                for &(j, v) in &rho_cols[k] {
+                let mut dense = vec![0.0; px.len()];
+                for &(j, v) in &rho_col {
                     dense[j as usize] = v[c];
                 }
                 let col = vec![dense];
-                let tgt: Vec<f64> = test.iter().enumerate().map(|(j, t)| target(t)[c] - without[j][c]).collect();
+                let t_c: Vec<f64> = tgt.iter().zip(&without).map(|(t, w)| t[c] - w[c]).collect();
                 let rho = x[idx(k, BASE_COLOR + c)];
                 let mut v = [0.0];
                 let problem = linear::Problem {
                     cols: &col,
-                    target: &tgt,
+                    target: &t_c,
                     second: None,
                     weights: None,
                     groups: None,
@@ -331,14 +346,17 @@ pub fn choose_models(
                 }
             }
         }
-        let d: Vec<f64> =
-            test.iter().enumerate().map(|(j, t)| l1(target(t), without[j]) - l1(target(t), pred[j])).collect();
+        let d: Vec<f64> = tgt.iter().zip(without.iter().zip(&pred)).map(|(t, (w, p))| l1(*t, *w) - l1(*t, *p)).collect();
         let (gain, t) = paired_t(&d);
-        let rel = gain / mean_target.max(f64::MIN_POSITIVE);
+        let mean_lit = tgt.iter().map(|t| l1(*t, [0.0; 3])).sum::<f64>() / tgt.len() as f64;
+        let rel = gain / mean_lit.max(f64::MIN_POSITIVE);
         if t > T_KEEP && rel > MIN_GAIN * 1e-2 {
             emits[k] = true;
             why[k].push(format!(
-                "emission kept: without it the {test_name} L1 rises by {:.3} % of the mean radiance (t = {t:.1})",
+                "emission kept: without it the {test_name} L1 of the {} pixels its light reaches (of {}) rises by \
+                 {:.3} % of their mean radiance (t = {t:.1})",
+                on.len(),
+                lit.len(),
                 100.0 * rel
             ));
         } else {
@@ -346,8 +364,11 @@ pub fn choose_models(
                 material_refit = true;
             }
             why[k].push(format!(
-                "emission {e:.4?} dropped: it changes the {test_name} L1 by {:+.4} % (t = {t:.1}; needs t > {T_KEEP}); \
-                 without it the best base colour differs by {delta:+.3?}",
+                "emission {e:.4?} dropped: on the {} {test_name} pixels its light reaches (of {}) it changes the L1 \
+                 by {:+.4} % (t = {t:.1}; needs t > {T_KEEP}); without it the best base colour differs by \
+                 {delta:+.3?}",
+                on.len(),
+                lit.len(),
                 -100.0 * rel
             ));
         }
@@ -367,6 +388,13 @@ pub fn choose_models(
             key: key::SELECT_EMISSION_REFIT,
         };
         run.apply(ctx, s, sets, &mut x, free, &no_emission)?;
+        // The re-fit may take a kept emission to 0 (the solve's bounds): its model then has none.
+        for k in 0..k_count {
+            if emits[k] && (0..3).all(|c| x[idx(k, EMISSION + c)] == 0.0) {
+                emits[k] = false;
+                why[k].push("the re-fit after a dropped emission set this emission to 0".into());
+            }
+        }
     }
     let models = (0..k_count)
         .map(|k| {
@@ -394,21 +422,4 @@ pub fn choose_models(
         })
         .collect();
     Ok((x, models))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn paired_t_matches_the_textbook_formula() {
-        // d = 1, 2, 3, 4: mean 2.5, sample sd √(5/3), se = sd/2 → t = 2.5 / 0.6455 = 3.873.
-        let (mean, t) = paired_t(&[1.0, 2.0, 3.0, 4.0]);
-        assert!((mean - 2.5).abs() < 1e-12);
-        assert!((t - 2.5 / ((5.0f64 / 3.0).sqrt() / 2.0)).abs() < 1e-12);
-        // Symmetric differences: no evidence either way.
-        assert_eq!(paired_t(&[-1.0, 1.0, -2.0, 2.0]).1, 0.0);
-        // Too few samples: no t.
-        assert_eq!(paired_t(&[5.0]).1, 0.0);
-    }
 }

@@ -18,9 +18,8 @@
 
 use super::jacobian::Ctx;
 use super::layout;
-use super::linear::{corner_floor, group_corners, huber};
+use super::linear::{corner_floor, group_corners, huber, paired_t};
 use super::pixels::WeightedDraw;
-use super::select::paired_t;
 use tracer::{PixelRef, TracerError};
 
 /// A step is refused when its candidate's data term exceeds the start's by more than this many standard errors
