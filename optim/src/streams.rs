@@ -61,6 +61,8 @@ pub mod draw {
     pub const TRIANGLE_EMISSION_PIXELS: u64 = 0x7265;
     /// Per-triangle fit: the pixels of an Adam batch (keyed by its [`super::key::triangle`] key).
     pub const TRIANGLE_BATCH: u64 = 0x7269;
+    /// Per-triangle fit: the pixels of the check after a light re-solve (keyed by the pixel and the round).
+    pub const TRIANGLE_LIGHT_CHECK: u64 = 0x7271;
     /// Per-triangle fit: which pixels a triangle keeps when it has more than its budget (keyed by the pixel;
     /// `crate::triangle::pixels::collect`).
     pub const TRIANGLE_PIXELS: u64 = 0x7270;
@@ -121,6 +123,9 @@ pub mod key {
     /// Step field of [`triangle`] for the light solve of pass p (`TRIANGLE_EMISSION | p`): above every ratio
     /// step and Adam key (< 2^17 iterations), below the 2^20 of the round field.
     pub const TRIANGLE_EMISSION: u32 = 1 << 17;
+    /// Step field of [`triangle`] for the check of a round's light re-solve: above the light solves' keys
+    /// (`TRIANGLE_EMISSION | p`, `| TRIANGLE_EMISSION_SECOND`), below the round field.
+    pub const TRIANGLE_LIGHT_CHECK: u32 = 1 << 19;
     /// ORed into a light solve's key for its second, independent Jacobian estimate.
     pub const TRIANGLE_EMISSION_SECOND: u64 = 1 << 18;
 }

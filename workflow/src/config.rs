@@ -289,10 +289,12 @@ impl Default for TriangleConfig {
             rounds: 3,
             fit_steps: 3,
             spp: 32,
-            // 256 pixels give a triangle's ratio update a relative standard error of σ/16 and each would-be
-            // child of the split test ~64 pixels; the fixtures' triangles have fewer, so only scans at house
-            // resolution are sampled (measured in docs/scale/README.md).
-            pixels_per_triangle: 256,
+            // The split test's power grows with the pixels per would-be child: at 256 (64 per child) the
+            // checker fixture's floor (2 triangles of ~3000 pixels, each child averaging several squares) was
+            // no longer split; 4096 keeps every fixture's triangles whole and bounds the large ones of a
+            // house scan (docs/optim/design-measurements.md, "Budgets of the decisions and of the
+            // per-triangle stage").
+            pixels_per_triangle: 4096,
             adam_iterations: 0,
             adam_lr: 0.01,
             smoothness: 0.1,
