@@ -97,11 +97,9 @@ pub mod key {
     /// Tone-curve exponent check after a fit ([`crate::photometric`]): its first render at `EXPONENT + round`,
     /// the second, independent one at `EXPONENT + round` XOR [`SECOND_ESTIMATE`].
     pub const EXPONENT: u64 = SELECT + (7 << 20);
-    /// Model selection: object k's emission test, the render of the fitted model at `SELECT_EMISSION_TEST + k`
-    /// and its emission column at `SELECT_EMISSION_TEST_COLUMN + k` (its base-colour column at
-    /// `SELECT_PIXEL_ROWS + k`).
+    /// Model selection: object k's emission test, the renders with and without its emission at
+    /// `SELECT_EMISSION_TEST + k` (common random numbers; its base-colour column at `SELECT_PIXEL_ROWS + k`).
     pub const SELECT_EMISSION_TEST: u64 = SELECT + (8 << 20);
-    pub const SELECT_EMISSION_TEST_COLUMN: u64 = SELECT + (9 << 20);
     /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
     /// below it, the next field 2^20 above).
     pub const SELECT_STEP_CHECK: u64 = 1 << 19;

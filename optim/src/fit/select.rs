@@ -234,8 +234,7 @@ pub fn choose_models(
     // Emission test, per emitter k, on the test pixels its light reaches: a pilot basis render of every
     // emitter's column over all test pixels (radiance is linear in emission: the column is ∂I/∂e_k) marks the
     // pixels where k's light arrives; up to `holdout_pixels` of them (seeded draws, see below) are rendered
-    // with the fitted model at `holdout_spp`, and k's column there at `solve_spp`, so the render without k's
-    // emission is the render minus J_k e_k. The pilot gets one object's path budget per column
+    // with the fitted model and without k's emission at `holdout_spp`. The pilot gets one object's path budget per column
     // (`basis_spp`), a path or two per pixel on a house: enough to find where a light arrives, while testing
     // on the pilot's own noisy columns dropped hidden lights (a house's uplights, t < 3 against 171 k pixels
     // at 1.5 paths each). The pixels are chosen with the pilot's random numbers and tested with fresh ones.
@@ -296,22 +295,23 @@ pub fn choose_models(
         }
         let px: Vec<PixelRef> = on.iter().map(|&j| pix[j]).collect();
         let tgt: Vec<[f64; 3]> = on.iter().map(|&j| target(&test[j])).collect();
-        let pred: Vec<[f64; 3]> = ctx
-            .render(&params, &px, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
-            .iter()
-            .map(|v| v.as_dvec3().to_array())
-            .collect();
-        let jk = jacobian::emission_columns_of(
-            ctx,
-            &params.materials,
-            &px,
-            s.solve_spp,
-            key::SELECT_EMISSION_TEST_COLUMN + k as u64,
-            &only_k,
-        )?
-        .swap_remove(k);
-        let mut without: Vec<[f64; 3]> =
-            pred.iter().zip(&jk).map(|(p, j)| std::array::from_fn(|c| p[c] - j[c] * e[c])).collect();
+        // The fitted model and the model without k's emission, rendered with the same random numbers: both arms
+        // carry the same kind of Monte Carlo noise. (The render minus a separately estimated J_k e_k has the
+        // column's noise in one arm only; the L1 of the noisier arm is larger on average, which kept spurious
+        // faint emissions on Daylight Room's ceiling and wall.)
+        let arm = |params: &tracer::Params| -> Result<Vec<[f64; 3]>, FitError> {
+            Ok(ctx
+                .render(params, &px, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
+                .iter()
+                .map(|v| v.as_dvec3().to_array())
+                .collect())
+        };
+        let pred = arm(&params)?;
+        let mut without = arm(&{
+            let mut p = params.clone();
+            p.emission[k] = glam::Vec3::ZERO;
+            p
+        })?;
         // The model without an object's emission gets its own best base colour: a visible surface's emission
         // and albedo both explain its brightness, and comparing at the albedo fitted *with* the emission
         // favours keeping it. Measured on a room lit by a small lamp 1e4× brighter than the walls
