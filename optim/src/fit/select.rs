@@ -6,10 +6,10 @@ use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, idx};
 use super::linear::{self, paired_t};
-use super::step_check;
 use super::pixels::{PixelSets, Sample};
 use super::roughness;
 use super::solve::{self, solve_options, solve_samples};
+use super::step_check;
 use super::{FitError, ObjectFitSettings, ObjectModel};
 use crate::streams::{self, draw, key};
 use tracer::PixelRef;
@@ -234,8 +234,9 @@ pub fn choose_models(
     // Emission test, per emitter k, on the test pixels its light reaches: a pilot basis render of every
     // emitter's column over all test pixels (radiance is linear in emission: the column is ∂I/∂e_k) marks the
     // pixels where k's light arrives; up to `holdout_pixels` of them (seeded draws, see below) are rendered
-    // with the fitted model and without k's emission at `holdout_spp`. The pilot gets one object's path budget per column
-    // (`basis_spp`), a path or two per pixel on a house: enough to find where a light arrives, while testing
+    // with the fitted model and without k's emission at `holdout_spp`. The pilot gets one object's path
+    // budget per column (`basis_spp`), a path or two per pixel on a house: enough to find where a light
+    // arrives, while testing
     // on the pilot's own noisy columns dropped hidden lights (a house's uplights, t < 3 against 171 k pixels
     // at 1.5 paths each). The pixels are chosen with the pilot's random numbers and tested with fresh ones.
     let params = layout::to_params(&x);
@@ -357,7 +358,8 @@ pub fn choose_models(
                 }
             }
         }
-        let d: Vec<f64> = tgt.iter().zip(without.iter().zip(&pred)).map(|(t, (w, p))| l1(*t, *w) - l1(*t, *p)).collect();
+        let d: Vec<f64> =
+            tgt.iter().zip(without.iter().zip(&pred)).map(|(t, (w, p))| l1(*t, *w) - l1(*t, *p)).collect();
         let (gain, t) = paired_t(&d);
         let mean_lit = tgt.iter().map(|t| l1(*t, [0.0; 3])).sum::<f64>() / tgt.len() as f64;
         let rel = gain / mean_lit.max(f64::MIN_POSITIVE);

@@ -379,13 +379,22 @@ fn fit_change(
         let bar = CHECK_PIXELS as f64 / samples.len() as f64;
         samples
             .iter()
-            .filter(|s| uniform(cfg.seed, draw::TRIANGLE_LIGHT_CHECK, crate::streams::pixel_key(s.pixel), u64::from(round)) < bar)
+            .filter(|s| {
+                uniform(cfg.seed, draw::TRIANGLE_LIGHT_CHECK, crate::streams::pixel_key(s.pixel), u64::from(round))
+                    < bar
+            })
             .collect()
     };
     let pix: Vec<PixelRef> = chosen.iter().map(|s| s.pixel).collect();
     let k = key::triangle(round, key::TRIANGLE_LIGHT_CHECK);
     let mut render = |params: &tracer::Params| -> Result<Vec<Vec3>, TriangleError> {
-        let (v, stats) = tracer::Renderer::new(scene, params, inputs.tracer)?.render_pixels(inputs.cameras, &pix, cfg.spp, cfg.seed, k)?;
+        let (v, stats) = tracer::Renderer::new(scene, params, inputs.tracer)?.render_pixels(
+            inputs.cameras,
+            &pix,
+            cfg.spp,
+            cfg.seed,
+            k,
+        )?;
         work.add(&stats);
         Ok(v)
     };

@@ -65,7 +65,9 @@ pub fn collect(
     per_triangle: usize,
     seed: u64,
 ) -> TriPixels {
-    let rank = |p: PixelRef| crate::streams::uniform(seed, crate::streams::draw::TRIANGLE_PIXELS, crate::streams::pixel_key(p), 0);
+    let rank = |p: PixelRef| {
+        crate::streams::uniform(seed, crate::streams::draw::TRIANGLE_PIXELS, crate::streams::pixel_key(p), 0)
+    };
     // Per triangle: the kept samples with their ranks, the largest kept rank (the bar a new pixel must pass
     // once the triangle is full), and the running count in the current view.
     let mut kept: Vec<Vec<(f64, TriSample)>> = vec![Vec::new(); triangles];
@@ -75,7 +77,8 @@ pub fn collect(
     let mut seen = 0u64;
     let views: Vec<usize> = (0..cameras.len().min(images.len())).collect();
     for chunk in views.chunks(VIEWS_IN_FLIGHT) {
-        let per_view: Vec<Vec<TriSample>> = chunk.par_iter().map(|&view| view_pixels(scene, &cameras[view], &images[view], view)).collect();
+        let per_view: Vec<Vec<TriSample>> =
+            chunk.par_iter().map(|&view| view_pixels(scene, &cameras[view], &images[view], view)).collect();
         for s in per_view.into_iter().flatten() {
             let t = s.tri as usize;
             if t >= triangles {
@@ -99,7 +102,7 @@ pub fn collect(
             }
             let r = rank(s.pixel);
             if r < bar[t] {
-                let worst = list.iter().enumerate().max_by(|a, b| a.1 .0.total_cmp(&b.1 .0)).map_or(0, |w| w.0);
+                let worst = list.iter().enumerate().max_by(|a, b| a.1.0.total_cmp(&b.1.0)).map_or(0, |w| w.0);
                 list[worst] = (r, s);
                 bar[t] = list.iter().map(|k| k.0).fold(f64::NEG_INFINITY, f64::max);
             }
