@@ -236,9 +236,9 @@ pub fn choose_models(
     // pixels where k's light arrives; up to `holdout_pixels` of them (seeded draws, see below) are rendered
     // with the fitted model and without k's emission at `holdout_spp`. The pilot gets one object's path
     // budget per column (`basis_spp`), a path or two per pixel on a house: enough to find where a light
-    // arrives, while testing
-    // on the pilot's own noisy columns dropped hidden lights (a house's uplights, t < 3 against 171 k pixels
-    // at 1.5 paths each). The pixels are chosen with the pilot's random numbers and tested with fresh ones.
+    // arrives, while testing on the pilot's own noisy columns dropped hidden lights (a house's uplights,
+    // t < 3 against 171 k pixels at 1.5 paths each). The pixels are chosen with the pilot's random numbers
+    // and tested with fresh ones.
     let params = layout::to_params(&x);
     let emitting: Vec<bool> = (0..k_count).map(|k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).collect();
     let n_emitters = emitting.iter().filter(|&&e| e).count();
