@@ -2,6 +2,8 @@
 //! triangle (`triangle.pixels_per_triangle`), with the triangle and would-be child each hits, and whether its
 //! whole footprint lies on that triangle.
 
+use std::collections::BinaryHeap;
+
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use tracer::PixelRef;
@@ -68,10 +70,11 @@ pub fn collect(
     let rank = |p: PixelRef| {
         crate::streams::uniform(seed, crate::streams::draw::TRIANGLE_PIXELS, crate::streams::pixel_key(p), 0)
     };
-    // Per triangle: the kept samples with their ranks, the largest kept rank (the bar a new pixel must pass
-    // once the triangle is full), and the running count in the current view.
-    let mut kept: Vec<Vec<(f64, TriSample)>> = vec![Vec::new(); triangles];
-    let mut bar = vec![f64::INFINITY; triangles];
+    // Per triangle: a max-heap of its kept samples' ranks (the largest is the bar a new pixel must pass once
+    // the triangle is full; ranks lie in [0, 1), where the bit patterns order like the values) with each
+    // sample's slot in `kept`, and the running count in the current view.
+    let mut heaps: Vec<BinaryHeap<(u64, usize)>> = vec![BinaryHeap::new(); triangles];
+    let mut kept: Vec<TriSample> = Vec::new();
     let mut best_view = vec![0u32; triangles];
     let mut current: Vec<(u32, u32)> = vec![(u32::MAX, 0); triangles];
     let mut seen = 0u64;
@@ -92,23 +95,21 @@ pub fn collect(
                 *c = (s.pixel.view, 1);
             }
             best_view[t] = best_view[t].max(c.1);
-            let list = &mut kept[t];
-            if list.len() < per_triangle {
-                list.push((rank(s.pixel), s));
-                if list.len() == per_triangle {
-                    bar[t] = list.iter().map(|k| k.0).fold(f64::NEG_INFINITY, f64::max);
-                }
-                continue;
-            }
-            let r = rank(s.pixel);
-            if r < bar[t] {
-                let worst = list.iter().enumerate().max_by(|a, b| a.1.0.total_cmp(&b.1.0)).map_or(0, |w| w.0);
-                list[worst] = (r, s);
-                bar[t] = list.iter().map(|k| k.0).fold(f64::NEG_INFINITY, f64::max);
+            let r = rank(s.pixel).to_bits();
+            let heap = &mut heaps[t];
+            if heap.len() < per_triangle {
+                heap.push((r, kept.len()));
+                kept.push(s);
+            } else if let Some(mut top) = heap.peek_mut()
+                && r < top.0
+            {
+                let slot = top.1;
+                kept[slot] = s;
+                *top = (r, slot);
             }
         }
     }
-    let mut samples: Vec<TriSample> = kept.into_iter().flatten().map(|k| k.1).collect();
+    let mut samples = kept;
     samples.sort_unstable_by_key(|s| (s.pixel.view, s.pixel.y, s.pixel.x));
     TriPixels { samples, best_view, seen }
 }
