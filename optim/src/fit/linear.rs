@@ -196,15 +196,44 @@ pub fn paired_t(d: &[f64]) -> (f64, f64) {
     }
     let mean = d.iter().sum::<f64>() / n;
     let var = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    let se = (var / n).sqrt();
-    let t = if se > 0.0 {
+    (mean, t_statistic(mean, (var / n).sqrt()))
+}
+
+/// `mean / se`, with a zero standard error giving +∞ for a positive mean (every difference equal and
+/// positive) and 0 otherwise (no evidence).
+#[must_use]
+pub fn t_statistic(mean: f64, se: f64) -> f64 {
+    if se > 0.0 {
         mean / se
     } else if mean > 0.0 {
         f64::INFINITY
     } else {
         0.0
-    };
-    (mean, t)
+    }
+}
+
+/// Mean and t-statistic of the population mean of `d` from two strata sampled at different rates: rows with
+/// `in_a[j]` stand for `w_a` of the population each, the others for `w_b` (the weights sum to 1 over the
+/// rows). Var = Σ_h W_h² s_h² / n_h with W_h = n_h·w_h the stratum's share.
+#[must_use]
+pub fn stratified_t(d: &[f64], in_a: &[bool], w_a: f64, w_b: f64) -> (f64, f64) {
+    let mut mean = 0.0;
+    let mut var = 0.0;
+    for (flag, w) in [(true, w_a), (false, w_b)] {
+        let x: Vec<f64> = d.iter().zip(in_a).filter(|(_, a)| **a == flag).map(|(v, _)| *v).collect();
+        if x.is_empty() {
+            continue;
+        }
+        let n = x.len() as f64;
+        let share = w * n;
+        let m = x.iter().sum::<f64>() / n;
+        mean += share * m;
+        if x.len() > 1 {
+            let s2 = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0);
+            var += share * share * s2 / n;
+        }
+    }
+    (mean, t_statistic(mean, var.sqrt()))
 }
 
 #[cfg(test)]
@@ -302,5 +331,25 @@ mod tests {
         assert_eq!(paired_t(&[-1.0, 1.0, -2.0, 2.0]).1, 0.0);
         // Too few samples: no t.
         assert_eq!(paired_t(&[5.0]).1, 0.0);
+    }
+
+    #[test]
+    fn the_stratified_t_is_the_paired_t_when_both_strata_are_sampled_alike() {
+        let d = [0.3, -0.1, 0.5, 0.2, 0.0, 0.4, -0.2, 0.6];
+        let a = [true, false, true, false, true, false, true, false];
+        let w = 1.0 / d.len() as f64;
+        let (m, t) = stratified_t(&d, &a, w, w);
+        let (m0, _) = paired_t(&d);
+        assert!((m - m0).abs() < 1e-12);
+        // Strata a = (0.3, 0.5, 0.0, −0.2), b = (−0.1, 0.2, 0.4, 0.6), each half the population: means 0.15 and
+        // 0.275, sample variances 0.29/3 and 0.2675/3, Var = ¼·(0.29/3)/4 + ¼·(0.2675/3)/4.
+        let se = (0.25 * (0.29 / 3.0) / 4.0 + 0.25 * (0.2675 / 3.0) / 4.0f64).sqrt();
+        assert!((t - 0.2125 / se).abs() < 1e-9, "t {t}");
+        // A stratum drawn at 10× the rate of its share: its rows count 1/10 as much in the mean.
+        let d2 = [10.0, 10.0, 0.0, 0.0];
+        let a2 = [true, true, false, false];
+        // Stratum a is 1/11 of the population (2 rows drawn at 10× the rate), b 10/11.
+        let (wa, wb) = (1.0 / 11.0 / 2.0, 10.0 / 11.0 / 2.0);
+        assert!((stratified_t(&d2, &a2, wa, wb).0 - 10.0 / 11.0).abs() < 1e-12);
     }
 }

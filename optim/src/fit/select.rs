@@ -5,7 +5,7 @@
 use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, idx};
-use super::linear::{self, paired_t};
+use super::linear::{self, paired_t, stratified_t};
 use super::pixels::{PixelSets, Sample};
 use super::roughness;
 use super::solve::{self, solve_options, solve_samples};
@@ -35,37 +35,6 @@ const PROFILE_PIXELS: usize = 256;
 /// default scene (mean L1 0.0023), so the tiny emissions that walls are routinely given and denied (≤ 0.003
 /// radiance, base colour change ≲ 0.005) cost nothing, while an emission that replaced albedo is undone.
 const REFIT_MATERIAL: f64 = 0.02;
-
-/// Mean and t-statistic of the population mean of `d` from two strata sampled at different rates: rows with
-/// `in_a[j]` stand for `w_a` of the population each, the others for `w_b` (the weights sum to 1 over the
-/// rows). Var = Σ_h W_h² s_h² / n_h with W_h = n_h·w_h the stratum's share.
-fn stratified_t(d: &[f64], in_a: &[bool], w_a: f64, w_b: f64) -> (f64, f64) {
-    let mut mean = 0.0;
-    let mut var = 0.0;
-    for (flag, w) in [(true, w_a), (false, w_b)] {
-        let x: Vec<f64> = d.iter().zip(in_a).filter(|(_, a)| **a == flag).map(|(v, _)| *v).collect();
-        if x.is_empty() {
-            continue;
-        }
-        let n = x.len() as f64;
-        let share = w * n;
-        let m = x.iter().sum::<f64>() / n;
-        mean += share * m;
-        if x.len() > 1 {
-            let s2 = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0);
-            var += share * share * s2 / n;
-        }
-    }
-    let se = var.sqrt();
-    let t = if se > 0.0 {
-        mean / se
-    } else if mean > 0.0 {
-        f64::INFINITY
-    } else {
-        0.0
-    };
-    (mean, t)
-}
 
 /// Gauss–Newton steps on emission (and base colour, per `unknowns`) after a model change, each on freshly drawn
 /// solve pixels, with base colour and emission averaged over the second half of the steps (as the
@@ -477,29 +446,4 @@ pub fn choose_models(
         })
         .collect();
     Ok((x, models))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_stratified_t_is_the_paired_t_when_both_strata_are_sampled_alike() {
-        let d = [0.3, -0.1, 0.5, 0.2, 0.0, 0.4, -0.2, 0.6];
-        let a = [true, false, true, false, true, false, true, false];
-        let w = 1.0 / d.len() as f64;
-        let (m, t) = stratified_t(&d, &a, w, w);
-        let (m0, _) = paired_t(&d);
-        assert!((m - m0).abs() < 1e-12);
-        // Strata a = (0.3, 0.5, 0.0, −0.2), b = (−0.1, 0.2, 0.4, 0.6), each half the population: means 0.15 and
-        // 0.275, sample variances 0.29/3 and 0.2675/3, Var = ¼·(0.29/3)/4 + ¼·(0.2675/3)/4.
-        let se = (0.25 * (0.29 / 3.0) / 4.0 + 0.25 * (0.2675 / 3.0) / 4.0f64).sqrt();
-        assert!((t - 0.2125 / se).abs() < 1e-9, "t {t}");
-        // A stratum drawn at 10× the rate of its share: its rows count 1/10 as much in the mean.
-        let d2 = [10.0, 10.0, 0.0, 0.0];
-        let a2 = [true, true, false, false];
-        // Stratum a is 1/11 of the population (2 rows drawn at 10× the rate), b 10/11.
-        let (wa, wb) = (1.0 / 11.0 / 2.0, 10.0 / 11.0 / 2.0);
-        assert!((stratified_t(&d2, &a2, wa, wb).0 - 10.0 / 11.0).abs() < 1e-12);
-    }
 }
