@@ -240,8 +240,7 @@ pub fn choose_models(
     // t < 3 against 171 k pixels at 1.5 paths each). The pixels are chosen with the pilot's random numbers
     // and tested with fresh ones.
     let params = layout::to_params(&x);
-    let emitting: Vec<bool> = (0..k_count).map(|k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).collect();
-    let n_emitters = emitting.iter().filter(|&&e| e).count();
+    let n_emitters = (0..k_count).filter(|&k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).count();
     progress.set_message(&format!("emission test: {n_emitters} emitters on {} pixels", pix.len()));
     let pilot_spp = super::emission_solve::basis_spp(s.solve_spp, budget, pix.len());
     let mut emits = vec![false; k_count];
