@@ -126,6 +126,9 @@ pub mod key {
     pub const TRIANGLE_LIGHT_CHECK: u32 = 1 << 19;
     /// ORed into a light solve's key for its second, independent Jacobian estimate.
     pub const TRIANGLE_EMISSION_SECOND: u64 = 1 << 18;
+    /// The render of the final per-triangle model behind the sub-triangle albedo detail
+    /// ([`crate::triangle::detail`]): above every [`triangle`] key (< 17·2^32).
+    pub const TRIANGLE_DETAIL: u64 = 17 << 32;
 }
 
 #[cfg(test)]

@@ -72,7 +72,7 @@ fn execute(cli: Cli, signals: &terminal::Signals) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Export(args) => {
-            workflow::stages::export::export_mesh(&args.run_dir, &Terminal::stderr_only())?;
+            workflow::stages::export::export_mesh(&args.run_dir, &Terminal::stderr_only(), None)?;
             Ok(())
         }
     }

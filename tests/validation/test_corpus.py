@@ -219,6 +219,42 @@ def test_scorer_reads_an_export_mesh(tiny, tmp_path):
     assert with_export[("albedo_psnr", "export")] == pytest.approx(without[("albedo_psnr", "per-object")], abs=0.3)
 
 
+def test_scorer_samples_the_export_atlas_through_the_obj_uvs(tiny, tmp_path):
+    """With `textured.obj` + `albedo.exr` beside the mesh, the export's albedo is the atlas at the hit's UV: an
+    atlas holding each triangle's true colour in its cell scores like the per-object truth, although the PLY's
+    albedo columns are 0 (the `export per-triangle` row reads those)."""
+    run = tmp_path / "run"
+    mat = fake_run(tiny, run)
+    by_id = {o["id"]: o for o in mat["objects"]}
+    pos, tri, cols = layout.read_ply_faces(tiny / "house_segmentations" / "tiny.ply")
+    from plyfile import PlyData, PlyElement
+
+    v = np.empty(len(pos), dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    v["x"], v["y"], v["z"] = pos.T
+    f = np.empty(len(tri), dtype=[("vertex_indices", "i4", (3,)), ("albedo_r", "f4"), ("albedo_g", "f4"),
+                                  ("albedo_b", "f4"), ("segment_id", "i4")])
+    f["vertex_indices"] = tri
+    f["albedo_r"] = f["albedo_g"] = f["albedo_b"] = 0.0
+    f["segment_id"] = cols["segment_id"]
+    (run / "export").mkdir()
+    PlyData([PlyElement.describe(v, "vertex"), PlyElement.describe(f, "face")]).write(str(run / "export" / "mesh.ply"))
+    # One 8-texel cell per triangle in a row, patch corners at texel offsets (2, 2), (6, 2), (2, 6).
+    cell, n = 8, len(tri)
+    atlas = np.zeros((cell, cell * n, 3), np.float32)
+    lines = []
+    for t in range(n):
+        atlas[:, t * cell:(t + 1) * cell] = by_id[int(cols["segment_id"][t])]["base_color"]
+        for x, y in ((2, 2), (6, 2), (2, 6)):
+            lines.append(f"vt {(t * cell + x) / (cell * n)} {1.0 - y / cell}")
+    (run / "export" / "textured.obj").write_text("\n".join(lines) + "\n")
+    layout.write_exr(run / "export" / "albedo.exr", atlas)
+    rows = rows_by(score.score(tiny, run, renders=tmp_path / "none", pipeline=None, log=lambda *_: None))
+    shutil.rmtree(run / "export")
+    without = rows_by(score.score(tiny, run, renders=tmp_path / "none", pipeline=None, log=lambda *_: None))
+    assert rows[("albedo_psnr", "export")] == pytest.approx(without[("albedo_psnr", "per-object")], abs=0.3)
+    assert rows[("albedo_psnr", "export per-triangle")] < rows[("albedo_psnr", "export")] - 5.0
+
+
 def test_scores_are_written_as_csv_and_markdown(tiny, tmp_path):
     fake_run(tiny, tmp_path / "run")
     rows = score.score(tiny, tmp_path / "run", renders=tmp_path / "none", pipeline=None, log=lambda *_: None)

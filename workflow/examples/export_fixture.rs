@@ -109,6 +109,7 @@ fn main() -> ExitCode {
         materials: &materials,
         emission: &emission,
         segment_id: &sub.object_id,
+        detail: None,
     };
     let report = match export::write_all(std::path::Path::new(&dir), &input, &ExportOptions::default()) {
         Ok(r) => r,

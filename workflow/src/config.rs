@@ -319,13 +319,34 @@ pub struct ExportConfig {
     /// At most this many views appear in report.html (evenly spread over the prepared views).
     #[serde(default = "default_report_views")]
     pub report_views: u32,
-    /// Seed of the report re-renders.
+    /// Seed of the report re-renders and of the detail's pixels and shading render.
     #[serde(default)]
     pub seed: u64,
+    /// Budget of the sub-triangle albedo detail in the atlas: texels over all triangles (0 = no detail).
+    #[serde(default = "default_detail_texels")]
+    pub detail_texels: u64,
+    /// Detail texels per pixel of a triangle's best view (before the budget).
+    #[serde(default = "default_detail_density")]
+    pub detail_density: f64,
+    /// Paths per pixel of the detail's shading render.
+    #[serde(default = "default_detail_spp")]
+    pub detail_spp: u32,
 }
 
 fn default_report_spp() -> u32 {
     64
+}
+
+fn default_detail_texels() -> u64 {
+    4_000_000
+}
+
+fn default_detail_density() -> f64 {
+    1.0
+}
+
+fn default_detail_spp() -> u32 {
+    32
 }
 
 fn default_report_views() -> u32 {
@@ -334,7 +355,14 @@ fn default_report_views() -> u32 {
 
 impl Default for ExportConfig {
     fn default() -> Self {
-        Self { report_spp: default_report_spp(), report_views: default_report_views(), seed: 0 }
+        Self {
+            report_spp: default_report_spp(),
+            report_views: default_report_views(),
+            seed: 0,
+            detail_texels: default_detail_texels(),
+            detail_density: default_detail_density(),
+            detail_spp: default_detail_spp(),
+        }
     }
 }
 

@@ -151,7 +151,7 @@ impl Plan {
             StageId::Preprocess => json!({"artefacts": 1, "images": self.images}),
             StageId::Object => json!({"artefacts": 1, "object": self.object, "tracer": self.tracer}),
             StageId::Triangle => json!({"artefacts": 1, "triangle": self.triangle, "tracer": self.tracer}),
-            StageId::Export => json!({"artefacts": 1, "export": self.export, "tracer": self.tracer}),
+            StageId::Export => json!({"artefacts": 2, "export": self.export, "tracer": self.tracer}),
         }
     }
 }
@@ -241,6 +241,8 @@ fn validate(c: &Config) -> Result<(), Invalid> {
     let e = &c.export;
     at_least_one("export.report_spp", e.report_spp)?;
     at_least_one("export.report_views", e.report_views)?;
+    positive("export.detail_density", e.detail_density)?;
+    at_least_one("export.detail_spp", e.detail_spp)?;
     Ok(())
 }
 

@@ -69,6 +69,7 @@ impl Fixture {
             materials: &self.materials,
             emission: &self.emission,
             segment_id: &self.segment_id,
+            detail: None,
         }
     }
 }

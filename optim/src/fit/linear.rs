@@ -1,4 +1,5 @@
-//! Small linear solves used by the fit: a box-constrained quadratic by projected coordinate descent, and an
+//! Small linear solves used by the fit: a symmetric positive definite system by Cholesky ([`solve_spd`]), a
+//! box-constrained quadratic by projected coordinate descent, and an
 //! L1, per-group Huber or L2 data fit (with optional row weights) with per-variable linear penalties, box
 //! bounds and a proximal (Levenberg–Marquardt) term, by iteratively reweighted least squares (IRLS).
 
@@ -42,6 +43,44 @@ pub struct Problem<'a> {
     pub anchor: &'a [f64],
     pub lo: &'a [f64],
     pub hi: &'a [f64],
+}
+
+/// Solves `a x = b` for a symmetric positive definite `a` (row-major n×n) by Cholesky. `None` when a pivot
+/// falls to 1e-12 of the largest diagonal entry or below: `a` is singular to double precision (e.g. normal
+/// equations of samples that do not span the model), and the caller falls back to a smaller model.
+#[must_use]
+pub fn solve_spd(a: &[f64], b: &[f64]) -> Option<Vec<f64>> {
+    let n = b.len();
+    if a.len() != n * n {
+        return None;
+    }
+    let scale = (0..n).map(|i| a[i * n + i]).fold(0.0f64, f64::max);
+    if !(scale.is_finite() && scale > 0.0) {
+        return None;
+    }
+    let mut l = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..=i {
+            let s = a[i * n + j] - (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum::<f64>();
+            if i == j {
+                if s <= 1e-12 * scale {
+                    return None;
+                }
+                l[i * n + i] = s.sqrt();
+            } else {
+                l[i * n + j] = s / l[j * n + j];
+            }
+        }
+    }
+    let mut y = vec![0.0; n];
+    for i in 0..n {
+        y[i] = (b[i] - (0..i).map(|k| l[i * n + k] * y[k]).sum::<f64>()) / l[i * n + i];
+    }
+    let mut x = vec![0.0; n];
+    for i in (0..n).rev() {
+        x[i] = (y[i] - (i + 1..n).map(|k| l[k * n + i] * x[k]).sum::<f64>()) / l[i * n + i];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
 /// Minimises ½ xᵀAx − bᵀx over the box by cyclic exact coordinate minimisation with projection. A is
@@ -239,6 +278,21 @@ pub fn stratified_t(d: &[f64], in_a: &[bool], w_a: f64, w_b: f64) -> (f64, f64) 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn solve_spd_solves_and_refuses_a_singular_system() {
+        // A = [[4,2,0],[2,5,1],[0,1,3]], x = (1, −2, 3) → b = A x.
+        let a = [4.0, 2.0, 0.0, 2.0, 5.0, 1.0, 0.0, 1.0, 3.0];
+        let x = [1.0, -2.0, 3.0];
+        let b: Vec<f64> = (0..3).map(|i| (0..3).map(|j| a[i * 3 + j] * x[j]).sum()).collect();
+        let got = solve_spd(&a, &b).unwrap();
+        for (g, w) in got.iter().zip(x) {
+            assert!((g - w).abs() < 1e-12, "{got:?}");
+        }
+        // Rank 1: the second row is twice the first.
+        assert!(solve_spd(&[1.0, 2.0, 2.0, 4.0], &[1.0, 2.0]).is_none());
+        assert!(solve_spd(&[1.0, 0.0, 0.0], &[1.0, 2.0]).is_none());
+    }
 
     #[test]
     fn box_qp_matches_the_unconstrained_solution_and_clamps() {

@@ -84,12 +84,16 @@
 //!   refinement belongs to the final round, which writes the result rather than a checkpoint;
 //!   [`RoundRecord::emission`] logs the emission after every round.
 //!
+//! - **Detail** ([`detail`]), after the rounds and outside them (the export stage calls it): texels finer
+//!   than any triangle, the photos divided by the final model's shading.
+//!
 //! # Measurements
 //!
 //! The measurements that chose the shrinkage, the split test, the light refinement and its gate, and the
 //! smoothness and Adam defaults are in `docs/optim/design-measurements.md`.
 
 pub mod adam;
+pub mod detail;
 pub mod light;
 pub mod pixels;
 pub mod ratio;

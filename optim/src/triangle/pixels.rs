@@ -20,6 +20,8 @@ pub struct TriSample {
     pub child: u8,
     /// The centre and the four corners of the pixel all hit `tri`: the pixel's value depends on `tri` alone.
     pub interior: bool,
+    /// Barycentric coordinates (u, v) of the centre's hit: the point is (1 − u − v)·p0 + u·p1 + v·p2.
+    pub bary: Vec2,
 }
 
 /// The child of a 4-way split holding barycentrics (w0, w1, w2) = (1 − u − v, u, v): the corner child at
@@ -67,6 +69,20 @@ pub fn collect(
     per_triangle: usize,
     seed: u64,
 ) -> TriPixels {
+    collect_budgets(scene, cameras, images, &vec![per_triangle; triangles], seed)
+}
+
+/// [`collect`] with a budget of its own per triangle (`budgets[t]`; the triangle count is `budgets.len()`).
+/// A budget of 0 keeps no pixel of that triangle but still counts its best view.
+#[must_use]
+pub fn collect_budgets(
+    scene: &tracer::Scene,
+    cameras: &[tracer::Camera],
+    images: &[ingest::photo::LinearImage],
+    budgets: &[usize],
+    seed: u64,
+) -> TriPixels {
+    let triangles = budgets.len();
     let rank = |p: PixelRef| {
         crate::streams::uniform(seed, crate::streams::draw::TRIANGLE_PIXELS, crate::streams::pixel_key(p), 0)
     };
@@ -97,7 +113,7 @@ pub fn collect(
             best_view[t] = best_view[t].max(c.1);
             let r = rank(s.pixel).to_bits();
             let heap = &mut heaps[t];
-            if heap.len() < per_triangle {
+            if heap.len() < budgets[t] {
                 heap.push((r, kept.len()));
                 kept.push(s);
             } else if let Some(mut top) = heap.peek_mut()
@@ -138,6 +154,7 @@ fn view_pixels(
             tri: h.prim_id,
             child: child_of(h.u, h.v),
             interior,
+            bary: Vec2::new(h.u, h.v),
         });
     }
     out

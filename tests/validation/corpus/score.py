@@ -71,10 +71,38 @@ def image_scores(truth: np.ndarray, estimate: np.ndarray) -> tuple[float, float]
     return psnr(float(np.mean((t - e) ** 2))), float(np.mean(np.abs(t - e)))
 
 
-def export_albedo_images(mesh_path: Path, cameras: list[cams.Camera], mi):
-    """Per camera: (albedo (H, W, 3), hit mask) of the pixel-centre rays against the exported mesh."""
+def read_obj_uvs(obj_path: Path) -> np.ndarray:
+    """The `vt` entries of an exported `textured.obj` in file order, as (N, 2) with v flipped back to glTF's
+    v-down (the export writes 3 per triangle, triangle order = `mesh.ply`'s face order)."""
+    uv = [line.split()[1:3] for line in open(obj_path) if line.startswith("vt ")]
+    a = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    a[:, 1] = 1.0 - a[:, 1]
+    return a
+
+
+def sample_bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear samples of an (H, W, 3) image at glTF UVs (v down; texel centres at (i + ½)/W)."""
+    h, w = img.shape[:2]
+    x = np.clip(uv[:, 0] * w - 0.5, 0, w - 1)
+    y = np.clip(uv[:, 1] * h - 0.5, 0, h - 1)
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    return ((img[y0, x0] * (1 - fx) + img[y0, x1] * fx) * (1 - fy)
+            + (img[y1, x0] * (1 - fx) + img[y1, x1] * fx) * fy)
+
+
+def export_albedo_images(mesh_path: Path, cameras: list[cams.Camera], mi, texture: bool = True):
+    """Per camera: (albedo (H, W, 3), hit mask) of the pixel-centre rays against the exported mesh. With
+    `texture` and the export's `textured.obj` + `albedo.exr` beside the mesh, the albedo is the atlas sampled
+    bilinearly at the hit's UV (the sub-triangle detail); else the triangle's `albedo_r/g/b`."""
     pos, tri, cols = layout.read_ply_faces(mesh_path)
     albedo = np.stack([cols["albedo_r"], cols["albedo_g"], cols["albedo_b"]], 1).astype(np.float64)
+    obj, exr = mesh_path.parent / "textured.obj", mesh_path.parent / "albedo.exr"
+    atlas = uvs = None
+    if texture and obj.is_file() and exr.is_file():
+        uvs = read_obj_uvs(obj)
+        atlas = layout.read_exr(exr).astype(np.float64) if len(uvs) == 3 * len(tri) else None
     from plyfile import PlyData, PlyElement
 
     with tempfile.TemporaryDirectory(prefix="corpus_score_") as tmp:
@@ -94,6 +122,18 @@ def export_albedo_images(mesh_path: Path, cameras: list[cams.Camera], mi):
         prim = np.array(si.prim_index, dtype=np.int64)
         img = np.zeros((len(hit), 3))
         img[hit] = albedo[prim[hit]]
+        if atlas is not None and hit.any():
+            t = prim[hit]
+            p3 = np.stack([np.array(si.p.x), np.array(si.p.y), np.array(si.p.z)], 1)[hit].astype(np.float64)
+            a, b, c = pos[tri[t, 0]], pos[tri[t, 1]], pos[tri[t, 2]]
+            e0, e1, e2 = b - a, c - a, p3 - a
+            d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
+            d20, d21 = (e2 * e0).sum(1), (e2 * e1).sum(1)
+            den = np.where(np.abs(d00 * d11 - d01 * d01) > 0, d00 * d11 - d01 * d01, 1.0)
+            bu, bv = (d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den
+            bu, bv = np.clip(bu, 0, 1), np.clip(bv, 0, 1)
+            uv = (1 - bu - bv)[:, None] * uvs[3 * t] + bu[:, None] * uvs[3 * t + 1] + bv[:, None] * uvs[3 * t + 2]
+            img[hit] = sample_bilinear(atlas, uv)
         out.append((img.reshape(cam.height, cam.width, 3), hit.reshape(cam.height, cam.width)))
     return out
 
@@ -164,7 +204,7 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
     nov = scan_dir / "novel"
     mesh = run_dir / "export" / "mesh.ply"
     exported = export_albedo_images(mesh, cameras, mi) if mesh.is_file() else [(None, None)] * len(cameras)
-    t_imgs, e_imgs, masks = [], [], []
+    t_imgs, e_imgs, masks, fallbacks = [], [], [], []
     for cam, (img, hit) in zip(cameras, exported):
         t = layout.read_exr(nov / "albedo" / f"{cam.name}.exr").astype(np.float64)
         ids = np.load(nov / "object_id" / f"{cam.name}.npy")
@@ -173,10 +213,16 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
             if int(i) in est:
                 fallback[ids == i] = est[int(i)]["base_color"]
         e = fallback if img is None else np.where(hit[..., None], img, fallback)
+        fallbacks.append(fallback)
         m = (ids > 0) & ~np.isin(ids, [i for i, o in truth.items() if o["emitting"]])
         t_imgs.append(t), e_imgs.append(e), masks.append(m)
     value, n = albedo_psnr(t_imgs, e_imgs, masks)
     row("albedo_psnr", "export" if mesh.is_file() else "per-object", value, n)
+    if mesh.is_file():
+        # The same without the atlas's sub-triangle detail: one base colour per exported triangle.
+        flat = export_albedo_images(mesh, cameras, mi, texture=False)
+        e_flat = [np.where(hit[..., None], img, fb) for (img, hit), fb in zip(flat, fallbacks)]
+        row("albedo_psnr", "export per-triangle", albedo_psnr(t_imgs, e_flat, masks)[0], n)
     if mesh.is_file():
         # Share of the scored pixels whose ray hit the export: low means the export is not in the scan frame.
         covered = sum(int((hit & m).sum()) for (_, hit), m in zip(exported, masks))

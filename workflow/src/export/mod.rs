@@ -42,6 +42,9 @@ pub struct ExportInput<'a> {
     pub emission: &'a [Vec3],
     /// Per triangle: object (segment) id.
     pub segment_id: &'a [i32],
+    /// Per triangle: its sub-triangle albedo grid, if any (`optim::triangle::detail`); the atlas then holds
+    /// the texels ([`atlas`], "Layout with sub-triangle detail"), the PLY and per-segment values the base colour.
+    pub detail: Option<&'a [Option<optim::triangle::detail::TexelGrid>]>,
 }
 
 /// Export settings.
@@ -190,6 +193,23 @@ pub fn validate(input: &ExportInput<'_>) -> Result<(), ExportError> {
             return Err(ExportError::Input { message: format!("{what} has {len} entries for {n} triangles") });
         }
     }
+    if let Some(d) = input.detail {
+        if d.len() != n {
+            return Err(ExportError::Input { message: format!("detail has {} entries for {n} triangles", d.len()) });
+        }
+        for (t, g) in d.iter().enumerate() {
+            if let Some(g) = g
+                && (g.n == 0
+                    || g.texels.len() != g.n as usize * g.n as usize
+                    || g.texels.iter().any(|v| !v.is_finite()))
+            {
+                return Err(ExportError::Triangle {
+                    triangle: t,
+                    message: format!("texel grid of side {} holds {} finite-checked texels", g.n, g.texels.len()),
+                });
+            }
+        }
+    }
     // OBJ and PLY indices are written as signed 32-bit integers (PLY `int`, OBJ readers parse i32/i64).
     if input.positions.len() > i32::MAX as usize {
         return Err(ExportError::Input { message: format!("{} vertices exceed i32 indices", input.positions.len()) });
@@ -227,7 +247,10 @@ fn write(dir: &Path, name: &str, bytes: &[u8], files: &mut Vec<PathBuf>) -> Resu
 /// (created if missing), each atomically. Fails before writing anything if the input is invalid.
 pub fn write_all(dir: &Path, input: &ExportInput<'_>, opts: &ExportOptions) -> Result<ExportReport, ExportError> {
     validate(input)?;
-    let layout = AtlasLayout::new(input.triangles.len(), opts.cell_texels, opts.max_atlas_size)?;
+    let layout = match input.detail {
+        Some(d) => AtlasLayout::with_detail(d, opts.cell_texels, opts.max_atlas_size)?,
+        None => AtlasLayout::new(input.triangles.len(), opts.cell_texels, opts.max_atlas_size)?,
+    };
     std::fs::create_dir_all(dir).map_err(|source| ExportError::CreateDir { path: dir.to_path_buf(), source })?;
     let mut files = Vec::new();
 
@@ -236,9 +259,11 @@ pub fn write_all(dir: &Path, input: &ExportInput<'_>, opts: &ExportOptions) -> R
     files.push(ply_path);
 
     let albedo: Vec<Vec3> = input.materials.iter().map(|m| m.base_color).collect();
-    let png = atlas::albedo_png(&dir.join(ALBEDO_PNG_FILE), &layout, &albedo)?;
+    let texels = atlas::albedo_texels(&layout, &albedo, input.detail);
+    let png = atlas::albedo_png(&dir.join(ALBEDO_PNG_FILE), &layout, &texels)?;
     write(dir, ALBEDO_PNG_FILE, &png, &mut files)?;
-    let exr = atlas::albedo_exr(&dir.join(ALBEDO_EXR_FILE), &layout, &albedo)?;
+    let exr = atlas::albedo_exr(&dir.join(ALBEDO_EXR_FILE), &layout, &texels)?;
+    drop(texels);
     write(dir, ALBEDO_EXR_FILE, &exr, &mut files)?;
 
     let segments = segment_summaries(input);

@@ -171,7 +171,11 @@ pub fn scan_is_z_up(views: &[ingest::View]) -> bool {
 
 /// Writes the mesh exports of a run directory into `run_dir/export/` (see the module docs); returns the
 /// files written, relative to `run_dir`.
-pub fn export_mesh(run_dir: &std::path::Path, reporter: &dyn Reporter) -> Result<Vec<PathBuf>, StageError> {
+pub fn export_mesh(
+    run_dir: &std::path::Path,
+    reporter: &dyn Reporter,
+    detail: Option<&DetailRequest<'_>>,
+) -> Result<Vec<PathBuf>, StageError> {
     use crate::export::{ExportInput, ExportOptions, expand_per_object, write_all};
     let scene_data = Ingested::read(run_dir)?;
     let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
@@ -188,12 +192,17 @@ pub fn export_mesh(run_dir: &std::path::Path, reporter: &dyn Reporter) -> Result
             }
             let emission: Vec<glam::Vec3> = st.face_object.iter().map(|&o| st.emission[o as usize]).collect();
             let segment_id: Vec<i32> = st.face_object.iter().map(|&o| segment(o)).collect();
+            let grids = match detail {
+                Some(req) if req.settings.max_texels > 0 => Some(estimate_detail(run_dir, &ids, &st, req, reporter)?),
+                _ => None,
+            };
             let input = ExportInput {
                 positions: &st.positions,
                 triangles: &st.triangles,
                 materials: &st.materials,
                 emission: &emission,
                 segment_id: &segment_id,
+                detail: grids.as_deref(),
             };
             write_all(&dir, &input, &opts)?
         }
@@ -207,6 +216,7 @@ pub fn export_mesh(run_dir: &std::path::Path, reporter: &dyn Reporter) -> Result
                 materials: &per.materials,
                 emission: &per.emission,
                 segment_id: &per.segment_id,
+                detail: None,
             };
             write_all(&dir, &input, &opts)?
         }
@@ -227,6 +237,52 @@ pub fn export_mesh(run_dir: &std::path::Path, reporter: &dyn Reporter) -> Result
         .iter()
         .map(|f| f.strip_prefix(run_dir).map(std::path::Path::to_path_buf).unwrap_or_else(|_| f.clone()))
         .collect())
+}
+
+/// What the sub-triangle detail needs besides the run directory (the export stage has it; `pipeline export`
+/// exports without detail).
+#[derive(Debug)]
+pub struct DetailRequest<'a> {
+    pub prepared: &'a crate::artefacts::preprocess::Prepared,
+    pub tracer: &'a tracer::TracerSettings,
+    pub settings: optim::triangle::detail::DetailSettings,
+}
+
+/// The per-triangle texel grids of the triangle result `st` (`optim::triangle::detail`), for the objects
+/// whose per-object model is `diffuse`.
+fn estimate_detail(
+    run_dir: &std::path::Path,
+    ids: &[i64],
+    st: &optim::triangle::TriangleState,
+    req: &DetailRequest<'_>,
+    reporter: &dyn Reporter,
+) -> Result<Vec<Option<optim::triangle::detail::TexelGrid>>, StageError> {
+    let materials = read_result(run_dir)?;
+    let eligible: Vec<bool> =
+        ids.iter().map(|id| materials.objects.iter().any(|o| o.id == *id && o.model == "diffuse")).collect();
+    let scene = st.scene().map_err(StageError::Triangle)?;
+    let cameras = req.prepared.tracer_cameras();
+    let progress = reporter.progress(StageId::Export, "detail", 1);
+    let (grids, report) = optim::triangle::detail::estimate(
+        &scene,
+        st,
+        &cameras,
+        &req.prepared.images,
+        req.tracer,
+        &eligible,
+        &req.settings,
+        progress.as_ref(),
+    )
+    .map_err(StageError::Triangle)?;
+    drop(progress);
+    reporter.note(
+        StageId::Export,
+        &format!(
+            "detail: {} texels on {} triangles (density {:.3} per best-view pixel) from {} pixels",
+            report.texels, report.triangles, report.density, report.pixels
+        ),
+    );
+    Ok(grids)
 }
 
 /// report.html's per-triangle section: triangle counts per object before/after the `triangle` stage and
@@ -319,7 +375,17 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         ],
     };
     // The mesh export first: report.html shows its albedo atlas in the per-triangle section.
-    let mesh_files = export_mesh(&plan.output, ctx.reporter)?;
+    let request = DetailRequest {
+        prepared: &prepared,
+        tracer: &settings,
+        settings: optim::triangle::detail::DetailSettings {
+            max_texels: plan.export.detail_texels,
+            density: plan.export.detail_density,
+            spp: plan.export.detail_spp,
+            seed: plan.export.seed,
+        },
+    };
+    let mesh_files = export_mesh(&plan.output, ctx.reporter, Some(&request))?;
     let mut data = data;
     data.triangle = triangle_section(&plan.output, &scene_data)?;
     write_atomic(&ctx.dir.join(REPORT_FILE), crate::report::html(&data).as_bytes())?;

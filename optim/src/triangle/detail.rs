@@ -1,0 +1,366 @@
+//! Sub-triangle albedo detail: a grid of texels per triangle, valued by dividing the photos by the final
+//! model's shading once the per-triangle fit has settled the light and every triangle's mean albedo.
+//!
+//! # Why
+//! A triangle carries one base colour, and the split test ([`super::split`]) refines a triangle only where its
+//! four would-be children differ. A texture whose features are smaller than those children (stripes, tiles,
+//! wood grain, wallpaper: centimetres, on triangles of decimetres to metres) has the same mean in every
+//! child, so it is never split and stays averaged. Measured on the corpus's textured room
+//! (`docs/realistic/README.md`, "Sub-triangle detail"): the per-triangle stage left the striped and
+//! checkered walls at their per-object mean (held-out albedo PSNR 14.9 dB, the same as the per-object truth's
+//! 15.0 dB), while one texel per best-view pixel recovers them.
+//!
+//! # Method
+//! A Lambertian surface sends ρ(x)·S(x) towards every camera, where the shading S (irradiance over π)
+//! varies smoothly across a triangle — it integrates the light over a hemisphere — and ρ carries the texture.
+//! The per-triangle fit has found the light and each triangle's mean ρ_t, so S is known up to Monte Carlo
+//! noise and ρ(x) = photo(x) / S(x).
+//! 1. **Resolution**: triangle t gets n_t × n_t cells over its barycentric square (u, v) ∈ [0, 1)², of which
+//!    the n_t(n_t + 1)/2 with i + j ≤ n_t − 1 meet the triangle; n_t = ⌈√(2·density·P_t)⌉ with P_t its pixel
+//!    centres in its best view, so that at density 1 a texel is about one pixel of the best view. When the
+//!    texels exceed `max_texels` the density shrinks (×0.8 per try) until they fit. n_t < 2: no detail.
+//! 2. **Pixels**: the valid pixels whose centre hits a detailed triangle, at most [`SAMPLES_PER_TEXEL`] per
+//!    texel (a uniform sample, [`super::pixels::collect_budgets`]).
+//! 3. **Shading**: the final model rendered at those pixels (`spp` paths, key [`key::TRIANGLE_DETAIL`]),
+//!    divided by ρ_t, and smoothed per triangle and channel by a least-squares quadratic in (u, v) (linear,
+//!    then constant, when the pixels do not span the quadratic): the fit removes the render's Monte Carlo
+//!    noise, which would otherwise become texture.
+//! 4. **Texels**: ρ_k = (Σ_(s∈k) T_s + κ ρ_t Ŝ_k) / (Σ_(s∈k) Ŝ(u_s, v_s) + κ Ŝ_k) with κ = [`PRIOR_PIXELS`]:
+//!    the ratio estimate of the texel's albedo from the photo values T_s of its pixels, with one pseudo-pixel
+//!    at the triangle's value, so that a texel seen by few pixels leans towards ρ_t and a texel no pixel
+//!    sees takes it. Clamped to [0, 1].
+//!
+//! Only triangles of objects whose model is diffuse and emits nothing get detail: a specular highlight
+//! depends on the view and would be baked into the albedo, and an emitter's radiance is not ρ·S.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use tracer::PixelRef;
+
+use super::pixels::{self, TriSample};
+use super::{TriangleError, TriangleState};
+use crate::fit::linear::solve_spd;
+use crate::streams::key;
+
+/// Pixels kept per texel: a texel's ratio estimate averages the photos' noise over up to this many pixels;
+/// more costs renders without sharpening the texel (its footprint is one best-view pixel).
+pub const SAMPLES_PER_TEXEL: usize = 64;
+
+/// Largest cells per triangle edge: 254 leaves a 1-texel border inside a 256-texel atlas cell.
+pub const MAX_CELLS: u32 = 254;
+
+/// Pseudo-pixels at the triangle's own value in every texel's estimate (step 4 of the module docs).
+pub const PRIOR_PIXELS: f64 = 1.0;
+
+/// Below this base colour a channel's shading (render / ρ) is not measurable (a channel ρ = 0 renders 0 in
+/// every pixel); the channel keeps the triangle's value.
+const MIN_BASE: f32 = 1e-3;
+
+/// Pixels a triangle needs for the quadratic shading fit (6 coefficients: 4 pixels per coefficient keep the
+/// fit's own noise well below the render's) and for the linear one (3 coefficients).
+const MIN_QUADRATIC: usize = 24;
+const MIN_LINEAR: usize = 12;
+
+/// The fitted shading is kept at or above this fraction of the triangle's mean shading: a quadratic
+/// extrapolated into a corner no pixel saw can reach 0 or below, and a division by it would blow the texel
+/// up; real shading on one triangle (the light integrated over a hemisphere) does not fall that far.
+const MIN_SHADING_FRACTION: f64 = 0.05;
+
+/// The settings of [`estimate`] (the `[export]` table's `detail_*` keys).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetailSettings {
+    /// Budget: texels over all triangles.
+    pub max_texels: u64,
+    /// Texels per best-view pixel (before the budget).
+    pub density: f64,
+    /// Paths per pixel of the shading render.
+    pub spp: u32,
+    pub seed: u64,
+}
+
+/// One triangle's texels: `n × n` cells over barycentric (u, v), cell (i, j) = [i/n, (i+1)/n) × [j/n,
+/// (j+1)/n) at index `i·n + j` (cells with i + j > n − 1 lie outside the triangle and hold their nearest
+/// inside neighbour's value, so that any filter reads sensible values).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TexelGrid {
+    pub n: u32,
+    pub texels: Vec<Vec3>,
+}
+
+impl TexelGrid {
+    /// The cell holding barycentrics `bary` = (u, v), clamped into the grid.
+    #[must_use]
+    pub fn cell(&self, bary: Vec2) -> (usize, usize) {
+        let n = self.n as usize;
+        // `as usize` saturates (NaN and negatives to 0); the min keeps u = 1 in the last cell.
+        let i = ((bary.x * self.n as f32) as usize).min(n - 1);
+        let j = ((bary.y * self.n as f32) as usize).min(n - 1);
+        (i, j)
+    }
+
+    /// The texel value at barycentrics `bary`.
+    #[must_use]
+    pub fn at(&self, bary: Vec2) -> Vec3 {
+        let (i, j) = self.cell(bary);
+        self.texels[i * self.n as usize + j]
+    }
+}
+
+/// What [`estimate`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetailReport {
+    /// Triangles given a grid.
+    pub triangles: usize,
+    /// Cells meeting those triangles (n(n+1)/2 each).
+    pub texels: u64,
+    /// Pixels rendered and divided.
+    pub pixels: usize,
+    /// The density used (the setting, or less to fit the budget).
+    pub density: f64,
+}
+
+/// Per triangle of `state`, its texel grid (`None`: no detail), for the objects with `eligible[object]`
+/// (diffuse, no emission; the caller knows the models). See the module docs.
+#[allow(clippy::too_many_arguments)]
+pub fn estimate(
+    scene: &tracer::Scene,
+    state: &TriangleState,
+    cameras: &[tracer::Camera],
+    images: &[ingest::photo::LinearImage],
+    tracer_settings: &tracer::TracerSettings,
+    eligible: &[bool],
+    settings: &DetailSettings,
+    progress: &dyn crate::Progress,
+) -> Result<(Vec<Option<TexelGrid>>, DetailReport), TriangleError> {
+    if settings.spp == 0 {
+        return Err(TriangleError::Setting { key: "detail_spp", message: "must be ≥ 1".into() });
+    }
+    if !(settings.density.is_finite() && settings.density > 0.0) {
+        return Err(TriangleError::Setting { key: "detail_density", message: "must be finite and > 0".into() });
+    }
+    let nt = state.triangles.len();
+    let free: Vec<bool> = (0..nt)
+        .map(|t| {
+            let o = state.face_object[t] as usize;
+            eligible.get(o).copied().unwrap_or(false) && state.emission.get(o).is_none_or(|e| e.max_element() <= 0.0)
+        })
+        .collect();
+    progress.set_message("counting each triangle's pixels");
+    let counts = pixels::collect_budgets(scene, cameras, images, &vec![0; nt], settings.seed);
+    let cells_at = |density: f64| -> Vec<u32> {
+        (0..nt)
+            .map(|t| {
+                let n = (2.0 * density * f64::from(counts.best_view[t])).sqrt().ceil();
+                if free[t] && n >= 2.0 { (n as u32).min(MAX_CELLS) } else { 0 }
+            })
+            .collect()
+    };
+    let texels_of = |n: &[u32]| n.iter().map(|&k| u64::from(k) * u64::from(k + 1) / 2).sum::<u64>();
+    let mut density = settings.density;
+    let mut n = cells_at(density);
+    while texels_of(&n) > settings.max_texels && n.iter().any(|&k| k > 0) {
+        density *= 0.8;
+        n = cells_at(density);
+    }
+    let budgets: Vec<usize> = n.iter().map(|&k| SAMPLES_PER_TEXEL * (k as usize * (k as usize + 1) / 2)).collect();
+    progress.set_message("collecting the pixels of the detailed triangles");
+    let pix = pixels::collect_budgets(scene, cameras, images, &budgets, settings.seed);
+    let refs: Vec<PixelRef> = pix.samples.iter().map(|s| s.pixel).collect();
+    progress.set_message(&format!("rendering the shading at {} pixels", refs.len()));
+    let renders = if refs.is_empty() {
+        Vec::new()
+    } else {
+        tracer::Renderer::new(scene, &state.params(), tracer_settings)?
+            .render_pixels(cameras, &refs, settings.spp, settings.seed, key::TRIANGLE_DETAIL)?
+            .0
+    };
+    // Samples grouped by triangle (counting sort; each group keeps the samples' order).
+    let mut start = vec![0usize; nt + 1];
+    for s in &pix.samples {
+        start[s.tri as usize + 1] += 1;
+    }
+    for t in 0..nt {
+        start[t + 1] += start[t];
+    }
+    let mut order = vec![0usize; pix.samples.len()];
+    let mut fill = start.clone();
+    for (k, s) in pix.samples.iter().enumerate() {
+        order[fill[s.tri as usize]] = k;
+        fill[s.tri as usize] += 1;
+    }
+    progress.set_message("dividing the photos by the shading");
+    let grids: Vec<Option<TexelGrid>> = (0..nt)
+        .into_par_iter()
+        .map(|t| {
+            let idx = &order[start[t]..start[t + 1]];
+            (n[t] >= 2 && !idx.is_empty()).then(|| {
+                let samples: Vec<(&TriSample, Vec3)> = idx.iter().map(|&k| (&pix.samples[k], renders[k])).collect();
+                triangle_grid(n[t], state.materials[t].base_color, &samples)
+            })
+        })
+        .collect();
+    let report = DetailReport {
+        triangles: grids.iter().flatten().count(),
+        texels: grids.iter().flatten().map(|g| u64::from(g.n) * u64::from(g.n + 1) / 2).sum(),
+        pixels: refs.len(),
+        density,
+    };
+    tracing::info!(triangles = report.triangles, texels = report.texels, pixels = report.pixels, density, "detail");
+    Ok((grids, report))
+}
+
+/// The quadratic basis in barycentrics.
+fn basis(b: Vec2) -> [f64; 6] {
+    let (u, v) = (f64::from(b.x), f64::from(b.y));
+    [1.0, u, v, u * u, u * v, v * v]
+}
+
+/// Least-squares coefficients of `values` over `points` in the first `k` basis functions (6, 3 or 1);
+/// `None` when the normal equations are singular.
+fn fit_shading(points: &[Vec2], values: &[f64], k: usize) -> Option<Vec<f64>> {
+    let mut a = vec![0.0; k * k];
+    let mut b = vec![0.0; k];
+    for (p, &y) in points.iter().zip(values) {
+        let f = basis(*p);
+        for i in 0..k {
+            b[i] += f[i] * y;
+            for j in 0..k {
+                a[i * k + j] += f[i] * f[j];
+            }
+        }
+    }
+    solve_spd(&a, &b)
+}
+
+/// One triangle's grid from its pixels (sample, render at the final model): steps 3 and 4 of the module docs.
+fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> TexelGrid {
+    let nn = n as usize;
+    let points: Vec<Vec2> = samples.iter().map(|(s, _)| s.bary).collect();
+    let grid = TexelGrid { n, texels: vec![base; nn * nn] };
+    let centre = |i: usize, j: usize| {
+        // The cell's centre, pulled into the triangle for the cells its diagonal cuts or that lie beyond it.
+        let (mut u, mut v) = ((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+        let excess = u + v - 1.0;
+        if excess > 0.0 {
+            u -= excess / 2.0;
+            v -= excess / 2.0;
+        }
+        Vec2::new(u.max(0.0), v.max(0.0))
+    };
+    let mut texels = grid.texels.clone();
+    for c in 0..3 {
+        if base[c] < MIN_BASE {
+            continue;
+        }
+        let shading: Vec<f64> = samples.iter().map(|(_, r)| f64::from(r[c]) / f64::from(base[c])).collect();
+        let mean = shading.iter().sum::<f64>() / shading.len() as f64;
+        if !(mean.is_finite() && mean > 0.0) {
+            continue;
+        }
+        let coef = [(6, MIN_QUADRATIC), (3, MIN_LINEAR)]
+            .iter()
+            .filter(|&&(_, need)| samples.len() >= need)
+            .find_map(|&(k, _)| fit_shading(&points, &shading, k))
+            .unwrap_or_else(|| vec![mean]);
+        let floor = MIN_SHADING_FRACTION * mean;
+        let eval = |b: Vec2| {
+            let f = basis(b);
+            coef.iter().zip(f).map(|(a, x)| a * x).sum::<f64>().max(floor)
+        };
+        let mut num = vec![0.0f64; nn * nn];
+        let mut den = vec![0.0f64; nn * nn];
+        for (s, _) in samples {
+            let (i, j) = grid.cell(s.bary);
+            num[i * nn + j] += f64::from(s.target[c]);
+            den[i * nn + j] += eval(s.bary);
+        }
+        for i in 0..nn {
+            for j in 0..nn {
+                let sk = eval(centre(i, j));
+                let prior = PRIOR_PIXELS * sk;
+                let value = (num[i * nn + j] + prior * f64::from(base[c])) / (den[i * nn + j] + prior);
+                texels[i * nn + j][c] = if value.is_finite() { value.clamp(0.0, 1.0) as f32 } else { base[c] };
+            }
+        }
+    }
+    // Cells beyond the diagonal (no pixel centre lies there) take the value of the inside cell nearest to them.
+    for i in 0..nn {
+        for j in 0..nn {
+            if i + j > nn - 1 {
+                // i, j ≤ n − 1 and i + j = n − 1 + over give i, j ≥ over: both steps stay inside the grid,
+                // and the cell reached lies on the diagonal.
+                let over = i + j - (nn - 1);
+                let (ii, jj) = (i - over.div_ceil(2), j - over / 2);
+                texels[i * nn + j] = texels[ii * nn + jj];
+            }
+        }
+    }
+    TexelGrid { n, texels }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(u: f32, v: f32, target: Vec3) -> TriSample {
+        TriSample {
+            pixel: PixelRef { view: 0, x: 0, y: 0 },
+            target,
+            tri: 0,
+            child: pixels::child_of(u, v),
+            interior: true,
+            bary: Vec2::new(u, v),
+        }
+    }
+
+    #[test]
+    fn a_striped_albedo_under_smooth_shading_is_recovered_per_texel() {
+        // Shading S(u, v) = 2 + u − 0.5 v (smooth), albedo 0.2 for u < ½ and 0.8 beyond (a stripe edge
+        // through the triangle), base colour the triangle's mean; renders at the base colour (noise-free).
+        let n = 8u32;
+        let albedo = |u: f32| if u < 0.5 { 0.2 } else { 0.8 };
+        let shade = |u: f32, v: f32| 2.0 + u - 0.5 * v;
+        let mut pts = Vec::new();
+        for a in 0..40 {
+            for b in 0..40 - a {
+                pts.push(((a as f32 + 0.3) / 40.0, (b as f32 + 0.3) / 40.0));
+            }
+        }
+        let base = pts.iter().map(|&(u, _)| albedo(u)).sum::<f32>() / pts.len() as f32;
+        let data: Vec<(TriSample, Vec3)> = pts
+            .iter()
+            .map(|&(u, v)| (sample(u, v, Vec3::splat(albedo(u) * shade(u, v))), Vec3::splat(base * shade(u, v))))
+            .collect();
+        let refs: Vec<(&TriSample, Vec3)> = data.iter().map(|(s, r)| (s, *r)).collect();
+        let g = triangle_grid(n, Vec3::splat(base), &refs);
+        // Texels well inside each stripe: within 2 % of the truth (the pseudo-pixel at the mean pulls a texel
+        // of ~25 pixels by ≤ 1/26 of the difference).
+        for &(u, v) in &[(0.1f32, 0.1f32), (0.3, 0.5), (0.7, 0.1), (0.9, 0.05)] {
+            let got = g.at(Vec2::new(u, v)).x;
+            assert!((got - albedo(u)).abs() < 0.03, "({u}, {v}): {got} for {}", albedo(u));
+        }
+        // A uniform albedo under the same shading stays uniform (the division removes the shading).
+        let flat: Vec<(TriSample, Vec3)> = pts
+            .iter()
+            .map(|&(u, v)| (sample(u, v, Vec3::splat(0.5 * shade(u, v))), Vec3::splat(0.5 * shade(u, v))))
+            .collect();
+        let refs: Vec<(&TriSample, Vec3)> = flat.iter().map(|(s, r)| (s, *r)).collect();
+        let g = triangle_grid(n, Vec3::splat(0.5), &refs);
+        for t in &g.texels {
+            assert!((t.x - 0.5).abs() < 1e-4, "{t}");
+        }
+    }
+
+    #[test]
+    fn cells_clamp_and_empty_texels_keep_the_triangle_value() {
+        let g = TexelGrid { n: 4, texels: (0..16).map(|k| Vec3::splat(k as f32)).collect() };
+        assert_eq!(g.cell(Vec2::new(1.0, 0.0)), (3, 0));
+        assert_eq!(g.cell(Vec2::new(-0.5, f32::NAN)), (0, 0));
+        // One pixel in one corner: the other texels keep the base colour.
+        let s = sample(0.05, 0.05, Vec3::splat(0.3));
+        let g = triangle_grid(4, Vec3::splat(0.6), &[(&s, Vec3::splat(0.6))]);
+        assert_eq!(g.at(Vec2::new(0.6, 0.2)), Vec3::splat(0.6));
+        // The seen texel: (0.3 + 0.6)/(1 + 1) with a constant shading of 1.
+        assert!((g.at(Vec2::new(0.05, 0.05)).x - 0.45).abs() < 1e-6);
+    }
+}
