@@ -30,6 +30,11 @@
 //!    at the triangle's value, so that a texel seen by few pixels leans towards ρ_t and a texel no pixel
 //!    sees takes it. Clamped to [0, 1].
 //!
+//! 5. **Only where the photos call for it**: per triangle, a one-way ANOVA of the pixels' residuals
+//!    T_s − ρ_t Ŝ(u_s, v_s) grouped by texel (per channel, ×3 Bonferroni), Holm over every triangle tested at
+//!    [`DETAIL_SIGNIFICANCE`]; a triangle whose texels differ only by noise keeps its one colour (as the split
+//!    test, [`super::split`]).
+//!
 //! Only triangles of objects whose model is diffuse and emits nothing get detail: a specular highlight
 //! depends on the view and would be baked into the albedo, and an emitter's radiance is not ρ·S.
 
@@ -38,6 +43,8 @@ use rayon::prelude::*;
 use tracer::PixelRef;
 
 use super::pixels::{self, TriSample};
+use super::significance::holm;
+use super::split::anova;
 use super::{TriangleError, TriangleState};
 use crate::fit::linear::solve_spd;
 use crate::streams::key;
@@ -65,6 +72,11 @@ const MIN_LINEAR: usize = 12;
 /// extrapolated into a corner no pixel saw can reach 0 or below, and a division by it would blow the texel
 /// up; real shading on one triangle (the light integrated over a hemisphere) does not fall that far.
 const MIN_SHADING_FRACTION: f64 = 0.05;
+
+/// Family-wise level of the per-triangle test that keeps a grid: the probability that any triangle whose
+/// texels differ only by noise gets one is at most this (the split test's level, `triangle.split_significance`
+/// default).
+pub const DETAIL_SIGNIFICANCE: f64 = 0.01;
 
 /// The settings of [`estimate`] (the `[export]` table's `detail_*` keys).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -189,7 +201,7 @@ pub fn estimate(
         fill[s.tri as usize] += 1;
     }
     progress.set_message("dividing the photos by the shading");
-    let grids: Vec<Option<TexelGrid>> = (0..nt)
+    let tested: Vec<Option<(TexelGrid, f64)>> = (0..nt)
         .into_par_iter()
         .map(|t| {
             let idx = &order[start[t]..start[t + 1]];
@@ -199,6 +211,11 @@ pub fn estimate(
             })
         })
         .collect();
+    // Holm over every triangle tested: only texel structure beyond noise becomes detail.
+    let p: Vec<f64> = tested.iter().flatten().map(|(_, p)| *p).collect();
+    let mut significant = holm(&p, DETAIL_SIGNIFICANCE).into_iter();
+    let grids: Vec<Option<TexelGrid>> =
+        tested.into_iter().map(|g| g.and_then(|(g, _)| significant.next().unwrap_or(false).then_some(g))).collect();
     let report = DetailReport {
         triangles: grids.iter().flatten().count(),
         texels: grids.iter().flatten().map(|g| u64::from(g.n) * u64::from(g.n + 1) / 2).sum(),
@@ -233,7 +250,7 @@ fn fit_shading(points: &[Vec2], values: &[f64], k: usize) -> Option<Vec<f64>> {
 }
 
 /// One triangle's grid from its pixels (sample, render at the final model): steps 3 and 4 of the module docs.
-fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> TexelGrid {
+fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> (TexelGrid, f64) {
     let nn = n as usize;
     let points: Vec<Vec2> = samples.iter().map(|(s, _)| s.bary).collect();
     let grid = TexelGrid { n, texels: vec![base; nn * nn] };
@@ -248,6 +265,7 @@ fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> TexelGri
         Vec2::new(u.max(0.0), v.max(0.0))
     };
     let mut texels = grid.texels.clone();
+    let mut p_min = 1.0f64;
     for c in 0..3 {
         if base[c] < MIN_BASE {
             continue;
@@ -269,10 +287,16 @@ fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> TexelGri
         };
         let mut num = vec![0.0f64; nn * nn];
         let mut den = vec![0.0f64; nn * nn];
+        let mut residuals: Vec<Vec<f64>> = vec![Vec::new(); nn * nn];
         for (s, _) in samples {
             let (i, j) = grid.cell(s.bary);
+            let shading = eval(s.bary);
             num[i * nn + j] += f64::from(s.target[c]);
-            den[i * nn + j] += eval(s.bary);
+            den[i * nn + j] += shading;
+            residuals[i * nn + j].push(f64::from(s.target[c]) - f64::from(base[c]) * shading);
+        }
+        if let Some(a) = anova(&residuals) {
+            p_min = p_min.min(a.p_value());
         }
         for i in 0..nn {
             for j in 0..nn {
@@ -295,7 +319,8 @@ fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> TexelGri
             }
         }
     }
-    TexelGrid { n, texels }
+    // Bonferroni over the 3 channels, as the split test.
+    (TexelGrid { n, texels }, (3.0 * p_min).min(1.0))
 }
 
 #[cfg(test)]
@@ -332,7 +357,8 @@ mod tests {
             .map(|&(u, v)| (sample(u, v, Vec3::splat(albedo(u) * shade(u, v))), Vec3::splat(base * shade(u, v))))
             .collect();
         let refs: Vec<(&TriSample, Vec3)> = data.iter().map(|(s, r)| (s, *r)).collect();
-        let g = triangle_grid(n, Vec3::splat(base), &refs);
+        let (g, p) = triangle_grid(n, Vec3::splat(base), &refs);
+        assert!(p < 1e-6, "a stripe is structure: p = {p}");
         // Texels well inside each stripe: within 2 % of the truth (the pseudo-pixel at the mean pulls a texel
         // of ~25 pixels by ≤ 1/26 of the difference).
         for &(u, v) in &[(0.1f32, 0.1f32), (0.3, 0.5), (0.7, 0.1), (0.9, 0.05)] {
@@ -345,7 +371,8 @@ mod tests {
             .map(|&(u, v)| (sample(u, v, Vec3::splat(0.5 * shade(u, v))), Vec3::splat(0.5 * shade(u, v))))
             .collect();
         let refs: Vec<(&TriSample, Vec3)> = flat.iter().map(|(s, r)| (s, *r)).collect();
-        let g = triangle_grid(n, Vec3::splat(0.5), &refs);
+        let (g, p) = triangle_grid(n, Vec3::splat(0.5), &refs);
+        assert!(p > 0.5, "no structure: p = {p}");
         for t in &g.texels {
             assert!((t.x - 0.5).abs() < 1e-4, "{t}");
         }
@@ -358,7 +385,7 @@ mod tests {
         assert_eq!(g.cell(Vec2::new(-0.5, f32::NAN)), (0, 0));
         // One pixel in one corner: the other texels keep the base colour.
         let s = sample(0.05, 0.05, Vec3::splat(0.3));
-        let g = triangle_grid(4, Vec3::splat(0.6), &[(&s, Vec3::splat(0.6))]);
+        let (g, _) = triangle_grid(4, Vec3::splat(0.6), &[(&s, Vec3::splat(0.6))]);
         assert_eq!(g.at(Vec2::new(0.6, 0.2)), Vec3::splat(0.6));
         // The seen texel: (0.3 + 0.6)/(1 + 1) with a constant shading of 1.
         assert!((g.at(Vec2::new(0.05, 0.05)).x - 0.45).abs() < 1e-6);
