@@ -194,12 +194,9 @@ def test_scorer_perfect_and_perturbed(tiny, tmp_path):
     assert score.image_scores(img, 0.5 * img)[0] < 20.0
 
 
-def test_scorer_reads_an_export_mesh(tiny, tmp_path):
-    """A per-triangle export equal to the per-object truth scores the same per-pixel PSNR as the per-object
-    fallback (the same pixel-centre rays hit the same objects)."""
-    run = tmp_path / "run"
-    mat = fake_run(tiny, run)
-    by_id = {o["id"]: o for o in mat["objects"]}
+def write_export_mesh(tiny, run, colour):
+    """`run/export/mesh.ply`: the scan mesh of `tiny` with `albedo_r/g/b` = `colour(segment id)` per face and
+    its `segment_id`; returns the faces and the scan's face columns."""
     pos, tri, cols = layout.read_ply_faces(tiny / "house_segmentations" / "tiny.ply")
     from plyfile import PlyData, PlyElement
 
@@ -208,11 +205,21 @@ def test_scorer_reads_an_export_mesh(tiny, tmp_path):
     f = np.empty(len(tri), dtype=[("vertex_indices", "i4", (3,)), ("albedo_r", "f4"), ("albedo_g", "f4"),
                                   ("albedo_b", "f4"), ("segment_id", "i4")])
     f["vertex_indices"] = tri
-    colours = np.array([by_id[int(s)]["base_color"] for s in cols["segment_id"]])
+    colours = np.array([colour(int(s)) for s in cols["segment_id"]], dtype=np.float64).reshape(-1, 3)
     f["albedo_r"], f["albedo_g"], f["albedo_b"] = colours.T
     f["segment_id"] = cols["segment_id"]
     (run / "export").mkdir()
     PlyData([PlyElement.describe(v, "vertex"), PlyElement.describe(f, "face")]).write(str(run / "export" / "mesh.ply"))
+    return tri, cols
+
+
+def test_scorer_reads_an_export_mesh(tiny, tmp_path):
+    """A per-triangle export equal to the per-object truth scores the same per-pixel PSNR as the per-object
+    fallback (the same pixel-centre rays hit the same objects)."""
+    run = tmp_path / "run"
+    mat = fake_run(tiny, run)
+    by_id = {o["id"]: o for o in mat["objects"]}
+    write_export_mesh(tiny, run, lambda segment: by_id[segment]["base_color"])
     with_export = rows_by(score.score(tiny, run, renders=tmp_path / "none", pipeline=None, log=lambda *_: None))
     shutil.rmtree(run / "export")
     without = rows_by(score.score(tiny, run, renders=tmp_path / "none", pipeline=None, log=lambda *_: None))
@@ -226,18 +233,7 @@ def test_scorer_samples_the_export_atlas_through_the_obj_uvs(tiny, tmp_path):
     run = tmp_path / "run"
     mat = fake_run(tiny, run)
     by_id = {o["id"]: o for o in mat["objects"]}
-    pos, tri, cols = layout.read_ply_faces(tiny / "house_segmentations" / "tiny.ply")
-    from plyfile import PlyData, PlyElement
-
-    v = np.empty(len(pos), dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
-    v["x"], v["y"], v["z"] = pos.T
-    f = np.empty(len(tri), dtype=[("vertex_indices", "i4", (3,)), ("albedo_r", "f4"), ("albedo_g", "f4"),
-                                  ("albedo_b", "f4"), ("segment_id", "i4")])
-    f["vertex_indices"] = tri
-    f["albedo_r"] = f["albedo_g"] = f["albedo_b"] = 0.0
-    f["segment_id"] = cols["segment_id"]
-    (run / "export").mkdir()
-    PlyData([PlyElement.describe(v, "vertex"), PlyElement.describe(f, "face")]).write(str(run / "export" / "mesh.ply"))
+    tri, cols = write_export_mesh(tiny, run, lambda segment: (0.0, 0.0, 0.0))
     # One 8-texel cell per triangle in a row, patch corners at texel offsets (2, 2), (6, 2), (2, 6).
     cell, n = 8, len(tri)
     atlas = np.zeros((cell, cell * n, 3), np.float32)

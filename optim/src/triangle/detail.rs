@@ -118,6 +118,16 @@ impl TexelGrid {
     }
 }
 
+/// Barycentrics `b` = (u, v) clamped to [0, 1] each, then pulled back across the diagonal (u + v ≤ 1) by
+/// moving both by half the excess: the point of the triangle nearest to `b` along the diagonal's normal.
+#[must_use]
+pub fn into_triangle(b: Vec2) -> Vec2 {
+    let (u, v) = (b.x.clamp(0.0, 1.0), b.y.clamp(0.0, 1.0));
+    // u, v ≤ 1 make the excess at most min(u, v): both stay ≥ 0.
+    let excess = (u + v - 1.0).max(0.0);
+    Vec2::new(u - excess / 2.0, v - excess / 2.0)
+}
+
 /// What [`estimate`] did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetailReport {
@@ -253,18 +263,10 @@ fn fit_shading(points: &[Vec2], values: &[f64], k: usize) -> Option<Vec<f64>> {
 fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> (TexelGrid, f64) {
     let nn = n as usize;
     let points: Vec<Vec2> = samples.iter().map(|(s, _)| s.bary).collect();
-    let grid = TexelGrid { n, texels: vec![base; nn * nn] };
-    let centre = |i: usize, j: usize| {
-        // The cell's centre, pulled into the triangle for the cells its diagonal cuts or that lie beyond it.
-        let (mut u, mut v) = ((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
-        let excess = u + v - 1.0;
-        if excess > 0.0 {
-            u -= excess / 2.0;
-            v -= excess / 2.0;
-        }
-        Vec2::new(u.max(0.0), v.max(0.0))
-    };
-    let mut texels = grid.texels.clone();
+    let mut grid = TexelGrid { n, texels: vec![base; nn * nn] };
+    // A cell's centre, pulled into the triangle for the cells its diagonal cuts or that lie beyond it.
+    let centre =
+        |i: usize, j: usize| into_triangle(Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32));
     let mut p_min = 1.0f64;
     for c in 0..3 {
         if base[c] < MIN_BASE {
@@ -303,7 +305,7 @@ fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> (TexelGr
                 let sk = eval(centre(i, j));
                 let prior = PRIOR_PIXELS * sk;
                 let value = (num[i * nn + j] + prior * f64::from(base[c])) / (den[i * nn + j] + prior);
-                texels[i * nn + j][c] = if value.is_finite() { value.clamp(0.0, 1.0) as f32 } else { base[c] };
+                grid.texels[i * nn + j][c] = if value.is_finite() { value.clamp(0.0, 1.0) as f32 } else { base[c] };
             }
         }
     }
@@ -315,12 +317,12 @@ fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> (TexelGr
                 // and the cell reached lies on the diagonal.
                 let over = i + j - (nn - 1);
                 let (ii, jj) = (i - over.div_ceil(2), j - over / 2);
-                texels[i * nn + j] = texels[ii * nn + jj];
+                grid.texels[i * nn + j] = grid.texels[ii * nn + jj];
             }
         }
     }
     // Bonferroni over the 3 channels, as the split test.
-    (TexelGrid { n, texels }, (3.0 * p_min).min(1.0))
+    (grid, (3.0 * p_min).min(1.0))
 }
 
 #[cfg(test)]

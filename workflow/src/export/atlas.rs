@@ -35,7 +35,7 @@ use std::path::Path;
 use glam::{Vec2, Vec3};
 
 use ingest::srgb;
-use optim::triangle::detail::TexelGrid;
+use optim::triangle::detail::{TexelGrid, into_triangle};
 
 use super::ExportError;
 
@@ -148,26 +148,6 @@ impl AtlasLayout {
         }
     }
 
-    /// Margin between the patch and the cell border of the uniform layout, in texels.
-    #[must_use]
-    pub fn margin(&self) -> u32 {
-        self.cell / 4
-    }
-
-    /// Top-left texel of triangle `t`'s cell.
-    #[must_use]
-    pub fn cell_origin(&self, t: u32) -> (u32, u32) {
-        let [x, y, _, _] = self.cell_of(t);
-        (x, y)
-    }
-
-    /// The triangle owning texel (x, y) in the uniform layout, if any.
-    #[must_use]
-    pub fn triangle_at(&self, x: u32, y: u32) -> Option<u32> {
-        let t = (y / self.cell) * self.columns + x / self.cell;
-        (x / self.cell < self.columns && t < self.triangles).then_some(t)
-    }
-
     /// glTF UVs (v down) of triangle `t`'s three corners, in corner order.
     #[must_use]
     pub fn corner_uvs(&self, t: u32) -> [Vec2; 3] {
@@ -182,10 +162,7 @@ impl AtlasLayout {
     pub fn texel_bary(&self, t: u32, x: u32, y: u32) -> Vec2 {
         let [_, _, c, m] = self.cell_of(t);
         let leg = (c - 2 * m) as f32;
-        let u = ((x as f32 + 0.5 - m as f32) / leg).clamp(0.0, 1.0);
-        let v = ((y as f32 + 0.5 - m as f32) / leg).clamp(0.0, 1.0);
-        let excess = (u + v - 1.0).max(0.0);
-        Vec2::new(u - excess / 2.0, v - excess / 2.0)
+        into_triangle(Vec2::new((x as f32 + 0.5 - m as f32) / leg, (y as f32 + 0.5 - m as f32) / leg))
     }
 
     /// Row-major texel values, `value(t, x, y)` for texel (x, y) of triangle t's cell, `empty` elsewhere.
@@ -341,17 +318,21 @@ mod tests {
     #[test]
     fn patches_stay_inside_their_cells_with_margin() {
         let l = AtlasLayout::new(37, 8, 4096).unwrap();
+        // The owner of every texel, as the images are filled.
+        let owner = l.fill(None, |t, _, _| Some(t));
+        let at = |x: u32, y: u32| owner[(y * l.width + x) as usize];
         for t in 0..37 {
-            let (x0, y0) = l.cell_origin(t);
+            let [x0, y0, _, m] = l.cell_of(t);
+            assert_eq!(m, l.cell / 4);
             for uv in l.corner_uvs(t) {
                 let (x, y) = (uv.x * l.width as f32, uv.y * l.height as f32);
-                let m = l.margin() as f32;
+                let m = m as f32;
                 assert!(x >= x0 as f32 + m && x <= (x0 + l.cell) as f32 - m);
                 assert!(y >= y0 as f32 + m && y <= (y0 + l.cell) as f32 - m);
             }
-            assert_eq!(l.triangle_at(x0, y0), Some(t));
-            assert_eq!(l.triangle_at(x0 + l.cell - 1, y0 + l.cell - 1), Some(t));
+            assert_eq!(at(x0, y0), Some(t));
+            assert_eq!(at(x0 + l.cell - 1, y0 + l.cell - 1), Some(t));
         }
-        assert_eq!(l.triangle_at(l.width - 1, l.height - 1), None);
+        assert_eq!(at(l.width - 1, l.height - 1), None);
     }
 }

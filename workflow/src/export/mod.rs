@@ -205,7 +205,12 @@ pub fn validate(input: &ExportInput<'_>) -> Result<(), ExportError> {
             {
                 return Err(ExportError::Triangle {
                     triangle: t,
-                    message: format!("texel grid of side {} holds {} finite-checked texels", g.n, g.texels.len()),
+                    message: format!(
+                        "texel grid of side {} must hold {} finite texels, holds {} (or a non-finite one)",
+                        g.n,
+                        g.n as usize * g.n as usize,
+                        g.texels.len()
+                    ),
                 });
             }
         }

@@ -193,7 +193,7 @@ pub fn export_mesh(
             let emission: Vec<glam::Vec3> = st.face_object.iter().map(|&o| st.emission[o as usize]).collect();
             let segment_id: Vec<i32> = st.face_object.iter().map(|&o| segment(o)).collect();
             let grids = match detail {
-                Some(req) if req.settings.max_texels > 0 => Some(estimate_detail(run_dir, &ids, &st, req, reporter)?),
+                Some(req) if req.settings.max_texels > 0 => Some(estimate_detail(&ids, &st, req, reporter)?),
                 _ => None,
             };
             let input = ExportInput {
@@ -243,6 +243,8 @@ pub fn export_mesh(
 /// exports without detail).
 #[derive(Debug)]
 pub struct DetailRequest<'a> {
+    /// The per-object result: which objects are `diffuse` (only those get detail).
+    pub materials: &'a crate::materials::MaterialsFile,
     pub prepared: &'a crate::artefacts::preprocess::Prepared,
     pub tracer: &'a tracer::TracerSettings,
     pub settings: optim::triangle::detail::DetailSettings,
@@ -251,15 +253,13 @@ pub struct DetailRequest<'a> {
 /// The per-triangle texel grids of the triangle result `st` (`optim::triangle::detail`), for the objects
 /// whose per-object model is `diffuse`.
 fn estimate_detail(
-    run_dir: &std::path::Path,
     ids: &[i64],
     st: &optim::triangle::TriangleState,
     req: &DetailRequest<'_>,
     reporter: &dyn Reporter,
 ) -> Result<Vec<Option<optim::triangle::detail::TexelGrid>>, StageError> {
-    let materials = read_result(run_dir)?;
     let eligible: Vec<bool> =
-        ids.iter().map(|id| materials.objects.iter().any(|o| o.id == *id && o.model == "diffuse")).collect();
+        ids.iter().map(|id| req.materials.objects.iter().any(|o| o.id == *id && o.model == "diffuse")).collect();
     let scene = st.scene().map_err(StageError::Triangle)?;
     let cameras = req.prepared.tracer_cameras();
     let progress = reporter.progress(StageId::Export, "detail", 1);
@@ -376,6 +376,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     };
     // The mesh export first: report.html shows its albedo atlas in the per-triangle section.
     let request = DetailRequest {
+        materials: &materials,
         prepared: &prepared,
         tracer: &settings,
         settings: optim::triangle::detail::DetailSettings {
