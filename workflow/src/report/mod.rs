@@ -84,6 +84,8 @@ pub fn samples_sentence(c: &SampleCounts) -> String {
 pub struct TriangleSection {
     /// Per object: (id, label, triangles in the scan's mesh, triangles after the stage).
     pub counts: Vec<(i64, String, usize, usize)>,
+    /// What the sub-triangle detail did (`None`: it did not run).
+    pub detail: Option<optim::triangle::detail::DetailReport>,
     /// `export/albedo.png` (sRGB 8-bit PNG bytes), when export wrote one; shown inline.
     pub atlas_png: Option<Vec<u8>>,
 }
@@ -197,10 +199,20 @@ pub fn html(data: &ReportData) -> String {
             );
         }
         s.push_str("</table>\n");
+        if let Some(d) = &t.detail {
+            let _ = writeln!(
+                s,
+                "<p>Sub-triangle detail: {} texels on {} triangles ({:.3} texels per pixel of a triangle's best \
+                 view), from {} photo pixels divided by the fitted shading. A triangle keeps one colour unless its \
+                 residuals photo − render differ between its texels beyond noise (optim::triangle::detail).</p>",
+                d.texels, d.triangles, d.density, d.pixels
+            );
+        }
         if let Some(png) = &t.atlas_png {
             let _ = writeln!(
                 s,
-                "<figure><figcaption>Albedo atlas (export/albedo.png, one padded patch per triangle)</figcaption>\
+                "<figure><figcaption>Albedo atlas (export/albedo.png: one padded cell per triangle, holding its \
+                 texels where it has detail)</figcaption>\
                  <img alt=\"albedo atlas\" style=\"image-rendering:pixelated;max-width:100%\" \
                  src=\"data:image/png;base64,{}\"></figure>",
                 base64(png)
@@ -270,6 +282,12 @@ mod tests {
             notes: vec![],
             triangle: Some(TriangleSection {
                 counts: vec![(1, "floor & co".into(), 2, 32)],
+                detail: Some(optim::triangle::detail::DetailReport {
+                    triangles: 7,
+                    texels: 1234,
+                    pixels: 5678,
+                    density: 0.8,
+                }),
                 atlas_png: Some(png_srgb(&RgbImage { width: 2, height: 1, rgb: vec![0.5; 6] }, 1.0)),
             }),
             samples: Some(SampleCounts { traced_paths: 2_000_000, discarded: 3 }),
@@ -284,6 +302,10 @@ mod tests {
         assert_eq!(page.matches("data:image/png;base64,").count(), 4);
         assert!(page.contains("<h2>Per-triangle stage</h2>"));
         assert!(page.contains("<td class=\"l\">floor &amp; co</td><td>2</td><td>32</td>"));
+        assert!(
+            page.contains("Sub-triangle detail: 1234 texels on 7 triangles (0.800 texels per pixel"),
+            "detail line"
+        );
         assert!(page.contains("<svg") && page.contains("<polyline"));
         assert!(page.contains("background:#ff0000"));
         assert!(page.contains("<td class=\"l\">because</td>"));

@@ -169,19 +169,28 @@ pub fn scan_is_z_up(views: &[ingest::View]) -> bool {
     up.z.abs() > up.y.abs()
 }
 
-/// Writes the mesh exports of a run directory into `run_dir/export/` (see the module docs); returns the
-/// files written, relative to `run_dir`.
+/// What [`export_mesh`] wrote.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshExport {
+    /// The files written, relative to the run directory.
+    pub files: Vec<PathBuf>,
+    /// What the sub-triangle detail did, when it ran.
+    pub detail: Option<optim::triangle::detail::DetailReport>,
+}
+
+/// Writes the mesh exports of a run directory into `run_dir/export/` (see the module docs).
 pub fn export_mesh(
     run_dir: &std::path::Path,
     reporter: &dyn Reporter,
     detail: Option<&DetailRequest<'_>>,
-) -> Result<Vec<PathBuf>, StageError> {
+) -> Result<MeshExport, StageError> {
     use crate::export::{ExportInput, ExportOptions, expand_per_object, write_all};
     let scene_data = Ingested::read(run_dir)?;
     let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
     let segment = |o: u32| i32::try_from(ids[o as usize]).unwrap_or(i32::MAX);
     let opts = ExportOptions { z_up: scan_is_z_up(&scene_data.views), ..ExportOptions::default() };
     let dir = run_dir.join("export");
+    let mut detail_report = None;
     let report = match triangle::read_result(run_dir)? {
         Some(st) => {
             if let Some(t) = st.face_object.iter().position(|&o| o as usize >= ids.len()) {
@@ -193,7 +202,11 @@ pub fn export_mesh(
             let emission: Vec<glam::Vec3> = st.face_object.iter().map(|&o| st.emission[o as usize]).collect();
             let segment_id: Vec<i32> = st.face_object.iter().map(|&o| segment(o)).collect();
             let grids = match detail {
-                Some(req) if req.settings.max_texels > 0 => Some(estimate_detail(&ids, &st, req, reporter)?),
+                Some(req) if req.settings.max_texels > 0 => {
+                    let (grids, r) = estimate_detail(&ids, &st, req, reporter)?;
+                    detail_report = Some(r);
+                    Some(grids)
+                }
                 _ => None,
             };
             let input = ExportInput {
@@ -232,11 +245,12 @@ pub fn export_mesh(
             dir.display()
         ),
     );
-    Ok(report
+    let files = report
         .files
         .iter()
         .map(|f| f.strip_prefix(run_dir).map(std::path::Path::to_path_buf).unwrap_or_else(|_| f.clone()))
-        .collect())
+        .collect();
+    Ok(MeshExport { files, detail: detail_report })
 }
 
 /// What the sub-triangle detail needs besides the run directory (the export stage has it; `pipeline export`
@@ -251,13 +265,13 @@ pub struct DetailRequest<'a> {
 }
 
 /// The per-triangle texel grids of the triangle result `st` (`optim::triangle::detail`), for the objects
-/// whose per-object model is `diffuse`.
+/// whose per-object model is `diffuse`, and what the estimate did.
 fn estimate_detail(
     ids: &[i64],
     st: &optim::triangle::TriangleState,
     req: &DetailRequest<'_>,
     reporter: &dyn Reporter,
-) -> Result<Vec<Option<optim::triangle::detail::TexelGrid>>, StageError> {
+) -> Result<(Vec<Option<optim::triangle::detail::TexelGrid>>, optim::triangle::detail::DetailReport), StageError> {
     let eligible: Vec<bool> =
         ids.iter().map(|id| req.materials.objects.iter().any(|o| o.id == *id && o.model == "diffuse")).collect();
     let scene = st.scene().map_err(StageError::Triangle)?;
@@ -282,14 +296,15 @@ fn estimate_detail(
             report.texels, report.triangles, report.density, report.pixels
         ),
     );
-    Ok(grids)
+    Ok((grids, report))
 }
 
-/// report.html's per-triangle section: triangle counts per object before/after the `triangle` stage and
-/// `export/albedo.png`; `None` when the stage wrote no result.
+/// report.html's per-triangle section: triangle counts per object before/after the `triangle` stage,
+/// what the sub-triangle detail did and `export/albedo.png`; `None` when the stage wrote no result.
 fn triangle_section(
     run_dir: &std::path::Path,
     scene_data: &Ingested,
+    detail: Option<optim::triangle::detail::DetailReport>,
 ) -> Result<Option<crate::report::TriangleSection>, StageError> {
     let Some(st) = triangle::read_result(run_dir)? else { return Ok(None) };
     let k = scene_data.objects.len();
@@ -307,7 +322,7 @@ fn triangle_section(
         .map(|(i, o)| (o.id, o.label.clone().unwrap_or_default(), before[i], after[i]))
         .collect();
     let atlas_png = std::fs::read(run_dir.join("export").join("albedo.png")).ok();
-    Ok(Some(crate::report::TriangleSection { counts, atlas_png }))
+    Ok(Some(crate::report::TriangleSection { counts, detail, atlas_png }))
 }
 
 /// Runs the stage.
@@ -386,16 +401,16 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             seed: plan.export.seed,
         },
     };
-    let mesh_files = export_mesh(&plan.output, ctx.reporter, Some(&request))?;
+    let mesh = export_mesh(&plan.output, ctx.reporter, Some(&request))?;
     let mut data = data;
-    data.triangle = triangle_section(&plan.output, &scene_data)?;
+    data.triangle = triangle_section(&plan.output, &scene_data, mesh.detail)?;
     write_atomic(&ctx.dir.join(REPORT_FILE), crate::report::html(&data).as_bytes())?;
     let mut files = vec![
         PathBuf::from("materials.json"),
         PathBuf::from("export").join(TRAJECTORIES_FILE),
         PathBuf::from("export").join(REPORT_FILE),
     ];
-    files.extend(mesh_files);
+    files.extend(mesh.files);
     ctx.note(&format!("wrote {}", plan.output.join("materials.json").display()));
     Ok(files)
 }
