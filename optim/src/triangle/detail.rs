@@ -36,7 +36,7 @@
 //!    keeps its one colour (as the split test, [`super::split`], which groups the same residuals by would-be
 //!    child). The raw render cancels every shading structure the model explains, sharp or not: a shadow edge,
 //!    which the quadratic Ŝ of step 3 cannot follow, made a test of T_s − ρ_t Ŝ read shading as texture (on
-//!    the uniform demo room 121 of 246 triangles got texels; 1 with this test). Measured in
+//!    the uniform demo room 121 triangles got 16 347 texels; 1 triangle 105 with this test). Measured in
 //!    `docs/realistic/README.md`, "Sub-triangle detail".
 //!
 //! Only triangles of objects whose model is diffuse and emits nothing get detail: a specular highlight
