@@ -263,22 +263,6 @@ fn fit_shading(points: &[Vec2], values: &[f64], k: usize) -> Option<Vec<f64>> {
     solve_spd(&a, &b)
 }
 
-/// The p-value of step 5 for channel `c`: a one-way ANOVA, grouped by texel, of the pixels' residuals
-/// photo − render at the final model. The render carries every structure the model explains (shadow edges,
-/// light pools, the shading's falloff), so that structure cancels here whatever its shape, where the smoothed
-/// shading Ŝ leaves its sharp parts in the residual; what remains differs between texels only through albedo
-/// structure within the triangle, or noise (the photo's and the render's, both in the within-texel variance).
-/// `None` when untestable (fewer than two texels with pixels, or no more pixels than such texels).
-fn texel_structure_p(grid: &TexelGrid, samples: &[(&TriSample, Vec3)], c: usize) -> Option<f64> {
-    let nn = grid.n as usize;
-    let mut groups: Vec<Vec<f64>> = vec![Vec::new(); nn * nn];
-    for (s, r) in samples {
-        let (i, j) = grid.cell(s.bary);
-        groups[i * nn + j].push(f64::from(s.target[c]) - f64::from(r[c]));
-    }
-    anova(&groups).map(|a| a.p_value())
-}
-
 /// One triangle's grid from its pixels (sample, render at the final model): steps 3 and 4 of the module docs.
 fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> (TexelGrid, f64) {
     let nn = n as usize;
@@ -309,13 +293,20 @@ fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> (TexelGr
         };
         let mut num = vec![0.0f64; nn * nn];
         let mut den = vec![0.0f64; nn * nn];
-        for (s, _) in samples {
+        // Step 5's residuals photo − render, the render unsmoothed: it carries every structure the model
+        // explains (shadow edges, light pools, the shading's falloff), so that structure cancels whatever its
+        // shape, where the smoothed Ŝ would leave its sharp parts; what remains differs between texels only
+        // through albedo structure within the triangle, or noise (the photo's and the render's, both in the
+        // within-texel variance).
+        let mut residuals: Vec<Vec<f64>> = vec![Vec::new(); nn * nn];
+        for (s, r) in samples {
             let (i, j) = grid.cell(s.bary);
             num[i * nn + j] += f64::from(s.target[c]);
             den[i * nn + j] += eval(s.bary);
+            residuals[i * nn + j].push(f64::from(s.target[c]) - f64::from(r[c]));
         }
-        if let Some(p) = texel_structure_p(&grid, samples, c) {
-            p_min = p_min.min(p);
+        if let Some(a) = anova(&residuals) {
+            p_min = p_min.min(a.p_value());
         }
         for i in 0..nn {
             for j in 0..nn {
