@@ -92,15 +92,16 @@ def sample_bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
             + (img[y1, x0] * (1 - fx) + img[y1, x1] * fx) * fy)
 
 
-def export_albedo_images(mesh_path: Path, cameras: list[cams.Camera], mi, texture: bool = True):
-    """Per camera: (albedo (H, W, 3), hit mask) of the pixel-centre rays against the exported mesh. With
-    `texture` and the export's `textured.obj` + `albedo.exr` beside the mesh, the albedo is the atlas sampled
-    bilinearly at the hit's UV (the sub-triangle detail); else the triangle's `albedo_r/g/b`."""
+def export_albedo_images(mesh_path: Path, cameras: list[cams.Camera], mi):
+    """Per camera, from one trace of the pixel-centre rays against the exported mesh: (albedo, per-triangle
+    albedo, hit mask), images (H, W, 3). The per-triangle albedo is the hit triangle's `albedo_r/g/b`; the
+    albedo is the same unless the export's `textured.obj` + `albedo.exr` lie beside the mesh, where it is the
+    atlas sampled bilinearly at the hit's UV (the sub-triangle detail)."""
     pos, tri, cols = layout.read_ply_faces(mesh_path)
     albedo = np.stack([cols["albedo_r"], cols["albedo_g"], cols["albedo_b"]], 1).astype(np.float64)
     obj, exr = mesh_path.parent / "textured.obj", mesh_path.parent / "albedo.exr"
     atlas = uvs = None
-    if texture and obj.is_file() and exr.is_file():
+    if obj.is_file() and exr.is_file():
         uvs = read_obj_uvs(obj)
         atlas = layout.read_exr(exr).astype(np.float64) if len(uvs) == 3 * len(tri) else None
     from plyfile import PlyData, PlyElement
@@ -120,8 +121,9 @@ def export_albedo_images(mesh_path: Path, cameras: list[cams.Camera], mi, textur
         si = scene.ray_intersect(ray)
         hit = np.array(si.is_valid(), dtype=bool)
         prim = np.array(si.prim_index, dtype=np.int64)
-        img = np.zeros((len(hit), 3))
-        img[hit] = albedo[prim[hit]]
+        flat = np.zeros((len(hit), 3))
+        flat[hit] = albedo[prim[hit]]
+        img = flat.copy()
         if atlas is not None and hit.any():
             t = prim[hit]
             p3 = np.stack([np.array(si.p.x), np.array(si.p.y), np.array(si.p.z)], 1)[hit].astype(np.float64)
@@ -134,7 +136,8 @@ def export_albedo_images(mesh_path: Path, cameras: list[cams.Camera], mi, textur
             bu, bv = np.clip(bu, 0, 1), np.clip(bv, 0, 1)
             uv = (1 - bu - bv)[:, None] * uvs[3 * t] + bu[:, None] * uvs[3 * t + 1] + bv[:, None] * uvs[3 * t + 2]
             img[hit] = sample_bilinear(atlas, uv)
-        out.append((img.reshape(cam.height, cam.width, 3), hit.reshape(cam.height, cam.width)))
+        shape = (cam.height, cam.width)
+        out.append((img.reshape(*shape, 3), flat.reshape(*shape, 3), hit.reshape(shape)))
     return out
 
 
@@ -203,9 +206,9 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
     cameras = novel_cameras(scan_dir)
     nov = scan_dir / "novel"
     mesh = run_dir / "export" / "mesh.ply"
-    exported = export_albedo_images(mesh, cameras, mi) if mesh.is_file() else [(None, None)] * len(cameras)
+    exported = export_albedo_images(mesh, cameras, mi) if mesh.is_file() else [(None, None, None)] * len(cameras)
     t_imgs, e_imgs, masks, fallbacks = [], [], [], []
-    for cam, (img, hit) in zip(cameras, exported):
+    for cam, (img, _, hit) in zip(cameras, exported):
         t = layout.read_exr(nov / "albedo" / f"{cam.name}.exr").astype(np.float64)
         ids = np.load(nov / "object_id" / f"{cam.name}.npy")
         fallback = np.zeros_like(t)
@@ -220,12 +223,11 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
     row("albedo_psnr", "export" if mesh.is_file() else "per-object", value, n)
     if mesh.is_file():
         # The same without the atlas's sub-triangle detail: one base colour per exported triangle.
-        flat = export_albedo_images(mesh, cameras, mi, texture=False)
-        e_flat = [np.where(hit[..., None], img, fb) for (img, hit), fb in zip(flat, fallbacks)]
+        e_flat = [np.where(hit[..., None], flat, fb) for (_, flat, hit), fb in zip(exported, fallbacks)]
         row("albedo_psnr", "export per-triangle", albedo_psnr(t_imgs, e_flat, masks)[0], n)
     if mesh.is_file():
         # Share of the scored pixels whose ray hit the export: low means the export is not in the scan frame.
-        covered = sum(int((hit & m).sum()) for (_, hit), m in zip(exported, masks))
+        covered = sum(int((hit & m).sum()) for (_, _, hit), m in zip(exported, masks))
         row("albedo_export_coverage", "pixels", covered / n if n else math.nan, n)
 
     # Per-object albedo L1 and roughness.
