@@ -100,6 +100,10 @@ pub mod key {
     /// Model selection: object k's emission test, the renders with and without its emission at
     /// `SELECT_EMISSION_TEST + k` (common random numbers; its base-colour column at `SELECT_PIXEL_ROWS + k`).
     pub const SELECT_EMISSION_TEST: u64 = SELECT + (8 << 20);
+    /// After model selection: the render and the two Jacobian estimates (XOR [`PROFILE_JACOBIAN`], and with
+    /// [`SECOND_ESTIMATE`]) behind the standard errors of the unseen objects' base colours
+    /// ([`crate::fit::prior`]), and the draw of their pixels.
+    pub const UNSEEN_PRIOR: u64 = SELECT + (9 << 20);
     /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
     /// below it, the next field 2^20 above).
     pub const SELECT_STEP_CHECK: u64 = 1 << 19;

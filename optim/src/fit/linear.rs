@@ -45,12 +45,10 @@ pub struct Problem<'a> {
     pub hi: &'a [f64],
 }
 
-/// Solves `a x = b` for a symmetric positive definite `a` (row-major n×n) by Cholesky. `None` when a pivot
-/// falls to 1e-12 of the largest diagonal entry or below: `a` is singular to double precision (e.g. normal
-/// equations of samples that do not span the model), and the caller falls back to a smaller model.
-#[must_use]
-pub fn solve_spd(a: &[f64], b: &[f64]) -> Option<Vec<f64>> {
-    let n = b.len();
+/// The lower Cholesky factor L (row-major n×n, A = LLᵀ) of a symmetric positive definite `a`. `None` when a
+/// pivot falls to 1e-12 of the largest diagonal entry or below: `a` is singular to double precision (e.g.
+/// normal equations of samples that do not span the model).
+fn cholesky(a: &[f64], n: usize) -> Option<Vec<f64>> {
     if a.len() != n * n {
         return None;
     }
@@ -72,15 +70,48 @@ pub fn solve_spd(a: &[f64], b: &[f64]) -> Option<Vec<f64>> {
             }
         }
     }
+    Some(l)
+}
+
+/// y = L⁻¹ b for the lower triangular factor `l` (row-major n×n).
+fn forward_substitute(l: &[f64], b: &[f64]) -> Vec<f64> {
+    let n = b.len();
     let mut y = vec![0.0; n];
     for i in 0..n {
         y[i] = (b[i] - (0..i).map(|k| l[i * n + k] * y[k]).sum::<f64>()) / l[i * n + i];
     }
+    y
+}
+
+/// Solves `a x = b` for a symmetric positive definite `a` (row-major n×n) by Cholesky. `None` when `a` is
+/// singular to double precision ([`cholesky`]), and the caller falls back to a smaller model.
+#[must_use]
+pub fn solve_spd(a: &[f64], b: &[f64]) -> Option<Vec<f64>> {
+    let n = b.len();
+    let l = cholesky(a, n)?;
+    let y = forward_substitute(&l, b);
     let mut x = vec![0.0; n];
     for i in (0..n).rev() {
         x[i] = (y[i] - (i + 1..n).map(|k| l[k * n + i] * x[k]).sum::<f64>()) / l[i * n + i];
     }
     x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// The diagonal entries `wanted` of A⁻¹ for a symmetric positive definite `a` (row-major n×n): (A⁻¹)_kk =
+/// ‖L⁻¹ e_k‖² with one factorisation. `None` when `a` is singular to double precision. The variances of
+/// a few parameters of a least-squares fit, from its information matrix.
+#[must_use]
+pub fn spd_inverse_diagonal(a: &[f64], n: usize, wanted: &[usize]) -> Option<Vec<f64>> {
+    let l = cholesky(a, n)?;
+    let out: Vec<f64> = wanted
+        .iter()
+        .map(|&k| {
+            let mut e = vec![0.0; n];
+            e[k] = 1.0;
+            forward_substitute(&l, &e).iter().map(|v| v * v).sum()
+        })
+        .collect();
+    out.iter().all(|v| v.is_finite()).then_some(out)
 }
 
 /// Minimises ½ xᵀAx − bᵀx over the box by cyclic exact coordinate minimisation with projection. A is
@@ -292,6 +323,17 @@ mod tests {
         // Rank 1: the second row is twice the first.
         assert!(solve_spd(&[1.0, 2.0, 2.0, 4.0], &[1.0, 2.0]).is_none());
         assert!(solve_spd(&[1.0, 0.0, 0.0], &[1.0, 2.0]).is_none());
+    }
+
+    #[test]
+    fn the_inverse_diagonal_matches_the_explicit_inverse() {
+        // A = [[4, 2, 0], [2, 3, 1], [0, 1, 2]]: det 12, A⁻¹ diagonal (5, 8, 8) / 12.
+        let a = [4.0, 2.0, 0.0, 2.0, 3.0, 1.0, 0.0, 1.0, 2.0];
+        let d = spd_inverse_diagonal(&a, 3, &[0, 1, 2]).unwrap();
+        for (got, want) in d.iter().zip([5.0 / 12.0, 8.0 / 12.0, 8.0 / 12.0]) {
+            assert!((got - want).abs() < 1e-12, "{d:?}");
+        }
+        assert!(spd_inverse_diagonal(&[1.0, 2.0, 2.0, 4.0], 2, &[0]).is_none());
     }
 
     #[test]

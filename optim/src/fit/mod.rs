@@ -11,7 +11,7 @@
 //!    object whose pixels have two colours (a textured floor fitted with one albedo) is flat between them, and
 //!    the hidden light's colour, fixed only by interreflection, followed the solves' pixel draw (measured:
 //!    docs/optim/design-measurements.md, "Solve pixels per object and the checker light").
-//! 2. **Adam** (paper §4.5) on base colour: batches of `batch_pixels` pixels uniform over all valid training
+//! 2. **Adam** (paper §4.5) on every base colour: batches of `batch_pixels` pixels uniform over all valid training
 //!    pixels, L1 loss with `n_value` value paths and `n_grad` independent gradient paths per pixel
 //!    (weights sign(I − I_target)/B), geometric learning-rate decay, clamping to [0, 1]; emission re-solved
 //!    every `emission_solve_every` iterations (variable projection: the emission always optimal for the
@@ -25,8 +25,13 @@
 //!    gain > 0.5 % of the mean radiance); with lobes kept, the emission is re-solved (or, with
 //!    `specular_trial_steps` > 0, Gauss–Newton steps re-fit emission and base colour). An emission term is kept
 //!    only when it lowers the held-out residual significantly. Objects seen in fewer than 16 training pixels are
-//!    reported unconstrained. The decision, its reason and `constrained` are in [`ObjectModel`] and go to
-//!    `materials.json` (`model`, `why`, `constrained`).
+//!    reported unconstrained (no lobe trial).
+//! 5. **Objects no photo sees** ([`prior`]): steps 2–3 estimate their base colours too, through the light
+//!    they reflect onto the objects the photos see; each is then weighed against a stated prior (the
+//!    area-weighted distribution of the observed objects of its category, or of all) by its standard error.
+//!
+//! The decision, its reason and `constrained` are in [`ObjectModel`] and go to `materials.json` (`model`,
+//! `why`, `constrained`).
 //!
 //! All randomness is keyed by (seed, iteration), so a run resumed from a [`FitState`] checkpoint gives the
 //! same result as an uninterrupted run (tests/fit_resume.rs).
@@ -53,6 +58,7 @@ pub mod layout;
 pub mod linear;
 pub mod object;
 pub mod pixels;
+pub mod prior;
 pub mod roughness;
 pub mod samples;
 pub mod select;
@@ -136,7 +142,8 @@ pub struct ObjectModel {
     /// `diffuse`, `specular`, `diffuse+emission` or `specular+emission`.
     pub model: String,
     pub why: String,
-    /// False when the photos cannot constrain the object's material (seen in too few pixels).
+    /// False when the photos do not see the object in enough pixels to constrain its material directly (its
+    /// base colour then comes from interreflection and a prior, `why` says how).
     pub constrained: bool,
 }
 

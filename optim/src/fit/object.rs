@@ -6,6 +6,7 @@ use super::emission_solve::{Unknowns, solve_step};
 use super::jacobian::Ctx;
 use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
 use super::pixels::{self, PixelSets};
+use super::prior::UnseenPrior;
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
 use super::solve::{MIN_PIXELS, solve_options, solve_samples};
@@ -173,6 +174,9 @@ pub fn fit_objects(
         return Err(FitError::NoPixels);
     }
     let free: Vec<bool> = sets.train_per_object.iter().map(|&n| n >= MIN_PIXELS).collect();
+    // Every base colour is an unknown of Adam and of the refinement, also those of objects no photo sees: they
+    // are reached through the light they reflect onto the ones the photos see (`prior`).
+    let every = vec![true; k_count];
     let total = s.iterations + s.refine_steps;
     // One step per iteration, then one per object in model selection (its lobe trials dominate its cost).
     progress.set_length(u64::from(total) + k_count as u64);
@@ -201,9 +205,9 @@ pub fn fit_objects(
     };
     progress.set_position(u64::from(state.iteration));
 
-    // Adam learns the free base colours; emission is solved, the lobe parameters are tried in `select`.
+    // Adam learns the base colours; emission is solved, the lobe parameters are tried in `select`.
     let mut lr_mask = vec![0.0; PER_OBJECT * k_count];
-    for k in (0..k_count).filter(|&k| free[k]) {
+    for k in 0..k_count {
         for c in 0..3 {
             lr_mask[idx(k, BASE_COLOR + c)] = 1.0;
         }
@@ -232,7 +236,7 @@ pub fn fit_objects(
             let samples = solve_samples(&sets, s, s.seed, key);
             let opts = solve_options(s, Unknowns::EmissionAndBaseColor);
             let start = state.params.clone();
-            let loss = solve_step(&ctx, &mut state.params, &samples, s.solve_spp, key, &free, &opts)?;
+            let loss = solve_step(&ctx, &mut state.params, &samples, s.solve_spp, key, &every, &opts)?;
             let check = step_check::check_step(
                 &ctx,
                 &start,
@@ -285,7 +289,27 @@ pub fn fit_objects(
 
     let x = average_refinement(&state, s);
     progress.set_message("model selection");
-    let (x, per_object) = select::choose_models(&ctx, s, &sets, &x, &free, progress, u64::from(total))?;
+    let (mut x, mut per_object) = select::choose_models(&ctx, s, &sets, &x, &free, progress, u64::from(total))?;
+    // The unseen objects' estimates, weighed against the prior by their standard errors (`prior`).
+    let prior = UnseenPrior::new(inputs.scene, inputs.objects, &free);
+    let unseen = prior.unseen();
+    if !unseen.is_empty() {
+        progress.set_message(&format!("unseen objects: {} base colours against their prior", unseen.len()));
+        let draw = solve_samples(&sets, s, s.seed, key::UNSEEN_PRIOR);
+        let averaged = (s.refine_steps - s.refine_steps / 2) as usize;
+        let se = super::prior::standard_errors(&ctx, &x, &draw, s.solve_spp, key::UNSEEN_PRIOR, &unseen, averaged)?;
+        for (&k, se) in unseen.iter().zip(se) {
+            let p = prior.prior(&x, k);
+            let estimate = [x[idx(k, BASE_COLOR)], x[idx(k, BASE_COLOR + 1)], x[idx(k, BASE_COLOR + 2)]];
+            let (rho, weight) = super::prior::combine(estimate, se, &p);
+            for c in 0..3 {
+                x[idx(k, BASE_COLOR + c)] = rho[c];
+            }
+            let text = super::prior::describe(rho, estimate, se, weight, &p);
+            tracing::info!(object = k, "{text}");
+            per_object[k].why = format!("{}; {text}", per_object[k].why);
+        }
+    }
     // No non-finite parameter is ever clamped away silently: like every step above, the model selection's
     // result is checked and a non-finite value aborts the fit (tests/stability_extremes.rs). Non-finite path
     // samples are the one thing discarded, by the tracer, and they are counted and bounded below.

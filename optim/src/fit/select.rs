@@ -430,8 +430,8 @@ pub fn choose_models(
                     format!("seen in only {n} training pixels")
                 };
                 reasons.insert(0, format!(
-                    "material unconstrained: {seen} (fewer than {}); its base colour, roughness and specular are the \
-                     start values, not estimates",
+                    "material unconstrained: {seen} (fewer than {}); its roughness and specular are the start values, \
+                     not estimates",
                     solve::MIN_PIXELS
                 ));
             }

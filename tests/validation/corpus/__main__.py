@@ -1,4 +1,5 @@
-"""`python -m corpus` (run by `scripts/corpus`): build, score, generate and list the corpus scenes."""
+"""`python -m corpus` (run by `scripts/corpus`): build, score, generate and list the corpus scenes; re-render a
+`lab synth` scan with Mitsuba."""
 from __future__ import annotations
 
 import argparse
@@ -29,6 +30,10 @@ def main(argv=None) -> int:
     g = sub.add_parser("generate", help="write a generated scene's Mitsuba XML, meshes and textures")
     g.add_argument("scene")
     g.add_argument("out_dir", type=Path)
+    r = sub.add_parser("rerender", help="replace a `lab synth` scan's photos by Mitsuba 3 renders of its scene")
+    r.add_argument("scan_dir", type=Path)
+    r.add_argument("--spp", type=int, default=1024)
+    r.add_argument("--threads", type=int, default=1)
     sub.add_parser("list", help="the scene names")
     a = ap.parse_args(argv)
 
@@ -58,6 +63,13 @@ def main(argv=None) -> int:
         house = Path(a.scene).stem if a.scene not in scenes.SCENES else a.scene
         scan.build(xml, a.out_dir, house, up=a.up or up, hfov=a.hfov, seed=a.seed, threads=a.threads,
                    scene_name=house, **opts)
+        return 0
+    if a.cmd == "rerender":
+        from .rerender import rerender
+
+        t = time.time()
+        n = len(rerender(a.scan_dir, a.spp, a.threads))
+        print(f"{n} photos of {a.scan_dir} rendered by Mitsuba at {a.spp} spp in {time.time() - t:.1f} s")
         return 0
     if a.cmd == "score":
         from . import score

@@ -1,0 +1,359 @@
+//! The base colour of an object that the photos do not see (fewer than [`super::solve::MIN_PIXELS`] training
+//! pixels): estimated from the light it reflects onto the surfaces they do see, and drawn towards a stated
+//! prior as far as that estimate is uncertain.
+//!
+//! Such an object is still in the light transport: a ceiling no photo sees reflects a lamp's light onto the
+//! walls. Held at a start value (grey 0.5 for a 0.85 ceiling), its missing bounce was made up by every wall's
+//! albedo (2–4 % too bright) and by the lamp (3–7 % too bright). So the fit treats every object's base colour
+//! as an unknown — Adam's gradient paths and the Gauss–Newton columns reach an unseen surface through the
+//! light it reflects — and, once the fit is done, weighs each unseen object's estimate against a prior:
+//!
+//! - **the estimate's standard error** per channel, from the information matrix of the fit's data at the
+//!   final parameters ([`standard_errors`]): the Jacobian of a fresh solve draw of pixels with respect to
+//!   every base colour and every light's emission (so that a ceiling's albedo is judged net of what the lamp
+//!   and the walls can trade for it), the residuals' robust scale, and the number of Gauss–Newton steps the
+//!   estimate averages;
+//! - **the prior**: the area-weighted mean and spread of the base colours of the observed objects that do not
+//!   emit, of the same category when the scan has any ([`UnseenPrior`]), else of all of them — the scan's
+//!   own distribution of surfaces;
+//! - **the result** is the precision-weighted mean of the two ([`combine`]), the posterior mean under Gaussian
+//!   errors: a ceiling that lights the walls takes its estimate, a lamp panel (whose reflection no pixel can
+//!   tell from its emission) or a cabinet's hidden back takes the prior. `materials.json` says which, with the
+//!   data's weight and standard error.
+//!
+//! Measured on rooms whose ceiling and lamp no photo sees (`docs/optim/design-measurements.md`, "Objects no
+//! photo sees"). The category of an object is the leading word of its label, lower-cased ("wall south" and
+//! "Wall_0002" are both `wall`): Matterport's segment labels are category names, and ours follow that rule.
+
+use super::ObjectDesc;
+use super::jacobian::{self, Ctx};
+use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
+use super::linear::spd_inverse_diagonal;
+use super::pixels::WeightedDraw;
+use crate::streams::key::{PROFILE_JACOBIAN, SECOND_ESTIMATE};
+use tracer::{PixelRef, TracerError};
+
+/// The prior's standard deviation never falls below this: a scan whose observed objects share one colour
+/// (or has one observed object) says little about a surface no photo sees, and an albedo known to ±0.1 is
+/// the most a scan's other surfaces can claim about it (indoor albedos span about 0.05–0.9).
+pub const MIN_PRIOR_SD: f64 = 0.1;
+
+/// Where an unseen object's prior comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PriorSource {
+    /// The observed, non-emitting objects of the same category.
+    SameCategory { category: String, objects: usize },
+    /// All observed, non-emitting objects (none of its category).
+    AllObserved { objects: usize },
+    /// No observed object that does not emit: the start value, with an uninformative spread.
+    StartValue,
+}
+
+/// A prior per channel: mean and standard deviation, and where it comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Prior {
+    pub mean: [f64; 3],
+    pub sd: [f64; 3],
+    pub source: PriorSource,
+}
+
+impl Prior {
+    fn describe_source(&self) -> String {
+        match &self.source {
+            PriorSource::SameCategory { category, objects } => {
+                format!(
+                    "the area-weighted mean of the {objects} observed non-emitting objects of category '{category}'"
+                )
+            }
+            PriorSource::AllObserved { objects } => format!(
+                "the area-weighted mean of all {objects} observed non-emitting objects (none of its category is observed)"
+            ),
+            PriorSource::StartValue => "the start value (no observed object without emission)".to_owned(),
+        }
+    }
+}
+
+/// The category key of a label: its leading run of letters, lower-cased; `None` when it has none.
+#[must_use]
+pub fn category(label: &str) -> Option<String> {
+    let word: String = label.chars().take_while(|c| c.is_alphabetic()).flat_map(char::to_lowercase).collect();
+    (!word.is_empty()).then_some(word)
+}
+
+/// What the prior needs to know of the objects: their surface areas and categories, and which are observed.
+#[derive(Debug, Clone)]
+pub struct UnseenPrior {
+    area: Vec<f64>,
+    category: Vec<Option<String>>,
+    observed: Vec<bool>,
+}
+
+impl UnseenPrior {
+    /// `observed[k]`: object k's material is constrained by the photos. Areas from the scene's triangles.
+    #[must_use]
+    pub fn new(scene: &tracer::Scene, objects: &[ObjectDesc], observed: &[bool]) -> Self {
+        let area = objects.iter().map(|o| o.triangles.iter().map(|&t| f64::from(scene.area(t))).sum()).collect();
+        Self::from_parts(area, objects.iter().map(|o| category(&o.label)).collect(), observed.to_vec())
+    }
+
+    /// The same from areas and categories directly (tests).
+    #[must_use]
+    pub fn from_parts(area: Vec<f64>, category: Vec<Option<String>>, observed: Vec<bool>) -> Self {
+        Self { area, category, observed }
+    }
+
+    /// The objects the photos do not constrain.
+    #[must_use]
+    pub fn unseen(&self) -> Vec<usize> {
+        (0..self.observed.len()).filter(|&k| !self.observed[k]).collect()
+    }
+
+    /// The prior of object `k` given the parameters `x`: area-weighted mean and standard deviation of the base
+    /// colours of the observed objects none of whose emission channels is positive, of k's category when any
+    /// is observed, else of all.
+    #[must_use]
+    pub fn prior(&self, x: &[f64], k: usize) -> Prior {
+        let n = (x.len() / PER_OBJECT).min(self.observed.len());
+        let donors: Vec<usize> = (0..n)
+            .filter(|&d| self.observed[d] && self.area[d] > 0.0 && (0..3).all(|c| x[idx(d, EMISSION + c)] <= 0.0))
+            .collect();
+        let same: Vec<usize> = match &self.category[k] {
+            Some(cat) => donors.iter().copied().filter(|&d| self.category[d].as_ref() == Some(cat)).collect(),
+            None => Vec::new(),
+        };
+        let (set, source) = if !same.is_empty() {
+            let objects = same.len();
+            (same, PriorSource::SameCategory { category: self.category[k].clone().unwrap_or_default(), objects })
+        } else if !donors.is_empty() {
+            let objects = donors.len();
+            (donors, PriorSource::AllObserved { objects })
+        } else {
+            let start = [x[idx(k, BASE_COLOR)], x[idx(k, BASE_COLOR + 1)], x[idx(k, BASE_COLOR + 2)]];
+            return Prior { mean: start, sd: [0.5; 3], source: PriorSource::StartValue };
+        };
+        let w: f64 = set.iter().map(|&d| self.area[d]).sum();
+        let mut mean = [0.0; 3];
+        let mut sd = [0.0; 3];
+        for c in 0..3 {
+            mean[c] = set.iter().map(|&d| self.area[d] * x[idx(d, BASE_COLOR + c)]).sum::<f64>() / w;
+            let var =
+                set.iter().map(|&d| self.area[d] * (x[idx(d, BASE_COLOR + c)] - mean[c]).powi(2)).sum::<f64>() / w;
+            sd[c] = var.sqrt().max(MIN_PRIOR_SD);
+        }
+        Prior { mean, sd, source }
+    }
+}
+
+/// The estimate combined with the prior, per channel: the precision-weighted mean (the posterior mean for
+/// Gaussian errors) and the data's weight in it, in [0, 1]. A non-finite standard error (no information)
+/// gives the prior.
+#[must_use]
+pub fn combine(estimate: [f64; 3], se: [f64; 3], prior: &Prior) -> ([f64; 3], [f64; 3]) {
+    let mut out = [0.0; 3];
+    let mut weight = [0.0; 3];
+    for c in 0..3 {
+        let data_precision = if se[c].is_finite() && se[c] > 0.0 { se[c].powi(-2) } else { 0.0 };
+        let prior_precision = prior.sd[c].powi(-2);
+        weight[c] = data_precision / (data_precision + prior_precision);
+        // Both terms lie in [0, 1]; the clamp only guards the box against rounding.
+        out[c] = (weight[c] * estimate[c] + (1.0 - weight[c]) * prior.mean[c]).clamp(0.0, 1.0);
+    }
+    (out, weight)
+}
+
+/// One sentence for an unseen object's `why` in `materials.json`.
+#[must_use]
+pub fn describe(result: [f64; 3], estimate: [f64; 3], se: [f64; 3], weight: [f64; 3], prior: &Prior) -> String {
+    let v3 = |v: [f64; 3]| format!("({:.3}, {:.3}, {:.3})", v[0], v[1], v[2]);
+    let w = weight.iter().sum::<f64>() / 3.0;
+    let how = if w >= 0.5 {
+        "estimated from the light it reflects onto the observed surfaces"
+    } else {
+        "mostly a prior: the light it reflects onto the observed surfaces leaves it uncertain"
+    };
+    format!(
+        "base colour {} {how}: estimate {} ± {} (standard error), prior {} ± {} = {}; the data's weight {}",
+        v3(result),
+        v3(estimate),
+        v3(se),
+        v3(prior.mean),
+        v3(prior.sd),
+        prior.describe_source(),
+        v3(weight)
+    )
+}
+
+/// Standard errors of the base colours of `objects` in the fit at `x`, per channel: from the information
+/// matrix JᵀWJ over the pixels of `draw` (J = ∂I/∂θ for every base colour that reaches them and the emission
+/// of every light, from the cross products of two independent gradient-path estimates), the residuals' robust scale
+/// (1.4826 · median |photo − render|, which counts both the photos' and the render's noise and what the model
+/// cannot represent), and `averaged` independent draws of this size behind the estimate (the Gauss–Newton
+/// steps it averages). Infinite where the information matrix is singular or the object reaches no pixel.
+pub fn standard_errors(
+    ctx: &Ctx<'_>,
+    x: &[f64],
+    draw: &WeightedDraw,
+    spp: u32,
+    key: u64,
+    objects: &[usize],
+    averaged: usize,
+) -> Result<Vec<[f64; 3]>, TracerError> {
+    let k_count = x.len() / PER_OBJECT;
+    let params = layout::to_params(x);
+    let pixels: Vec<PixelRef> = draw.samples.iter().map(|s| s.pixel).collect();
+    let m = pixels.len();
+    let mut out = vec![[f64::INFINITY; 3]; objects.len()];
+    if m == 0 {
+        return Ok(out);
+    }
+    let values = ctx.render(&params, &pixels, spp, key)?;
+    let rows_a = jacobian::pixel_rows(ctx, &params, &pixels, spp, key ^ PROFILE_JACOBIAN)?;
+    let rows_b = jacobian::pixel_rows(ctx, &params, &pixels, spp, key ^ PROFILE_JACOBIAN ^ SECOND_ESTIMATE)?;
+    let weights: Vec<f64> = if draw.weights.len() == m { draw.weights.clone() } else { vec![1.0; m] };
+    for c in 0..3 {
+        // Unknowns: every base colour with a non-zero column, then every light's emission.
+        let entry = |rows: &[jacobian::PixelRow], j: usize, v: usize| -> f64 {
+            if v < k_count { rows[j].base_color[v][c] } else { rows[j].emission[v - k_count][c] }
+        };
+        let vars: Vec<usize> = (0..k_count)
+            .filter(|&k| (0..m).any(|j| entry(&rows_a, j, k) != 0.0 || entry(&rows_b, j, k) != 0.0))
+            .chain((0..k_count).filter(|&k| x[idx(k, EMISSION + c)] > 0.0).map(|k| k_count + k))
+            .collect();
+        // The information matrix from the two independent estimates' cross products, ½(AᵀWB + BᵀWA): its
+        // expectation is that of the noise-free Jacobian, where AᵀWA would add each entry's Monte Carlo
+        // variance to the diagonal and claim information that a faintly reached surface (a lamp panel's own
+        // reflection) does not give.
+        let n_all = vars.len();
+        let mut gram = vec![0.0; n_all * n_all];
+        let (mut ra, mut rb) = (vec![0.0; n_all], vec![0.0; n_all]);
+        for j in 0..m {
+            for (i, &v) in vars.iter().enumerate() {
+                ra[i] = entry(&rows_a, j, v);
+                rb[i] = entry(&rows_b, j, v);
+            }
+            let nz: Vec<usize> = (0..n_all).filter(|&i| ra[i] != 0.0 || rb[i] != 0.0).collect();
+            for &p in &nz {
+                for &q in &nz {
+                    gram[p * n_all + q] += weights[j] * 0.5 * (ra[p] * rb[q] + rb[p] * ra[q]) / m as f64;
+                }
+            }
+        }
+        // A variable whose cross-product diagonal is not positive carries no information beyond its noise.
+        let keep: Vec<usize> = (0..n_all).filter(|&i| gram[i * n_all + i] > 0.0).collect();
+        let n = keep.len();
+        let mut g: Vec<f64> =
+            keep.iter().flat_map(|&p| keep.iter().map(move |&q| (p, q))).map(|(p, q)| gram[p * n_all + q]).collect();
+        let mut abs_res: Vec<f64> =
+            (0..m).map(|j| (f64::from(draw.samples[j].target[c]) - f64::from(values[j][c])).abs()).collect();
+        abs_res.sort_by(f64::total_cmp);
+        // 1.4826 · median |r| is the standard deviation of Gaussian residuals, robust to outliers.
+        let sigma = 1.4826 * abs_res[m / 2];
+        let wanted: Vec<(usize, usize)> = objects
+            .iter()
+            .enumerate()
+            .filter_map(|(o, &k)| keep.iter().position(|&i| vars[i] == k).map(|i| (o, i)))
+            .collect();
+        let idxs: Vec<usize> = wanted.iter().map(|&(_, i)| i).collect();
+        // The cross-product matrix need not be positive definite (noise); a ridge of 10⁻⁶ of its largest
+        // diagonal entry, raised tenfold up to 10⁻², makes it so while shrinking no well-determined variance
+        // measurably. Beyond that the object is left to its prior.
+        let scale = (0..n).map(|i| g[i * n + i]).fold(0.0f64, f64::max);
+        let mut ridge = 0.0;
+        let mut diag = None;
+        for step in 0..6 {
+            diag = spd_inverse_diagonal(&g, n, &idxs);
+            if diag.is_some() {
+                break;
+            }
+            let next = scale * 10f64.powi(step - 6);
+            for i in 0..n {
+                g[i * n + i] += next - ridge;
+            }
+            ridge = next;
+        }
+        if let Some(diag) = diag {
+            for (&(o, _), d) in wanted.iter().zip(diag) {
+                out[o][c] = sigma * (d / (m * averaged.max(1)) as f64).sqrt();
+            }
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene_x(colors: &[[f64; 3]], emission: &[[f64; 3]]) -> Vec<f64> {
+        let mut x = crate::fit::layout::initial(colors.len());
+        for (k, (c, e)) in colors.iter().zip(emission).enumerate() {
+            for i in 0..3 {
+                x[idx(k, BASE_COLOR + i)] = c[i];
+                x[idx(k, EMISSION + i)] = e[i];
+            }
+        }
+        x
+    }
+
+    #[test]
+    fn categories_are_the_leading_word() {
+        assert_eq!(category("wall south").as_deref(), Some("wall"));
+        assert_eq!(category("Wall_0002").as_deref(), Some("wall"));
+        assert_eq!(category("light rectangle 31").as_deref(), Some("light"));
+        assert_eq!(category("17"), None);
+        assert_eq!(category(""), None);
+    }
+
+    #[test]
+    fn the_prior_is_the_area_weighted_distribution_of_the_observed_category() {
+        // Two observed walls (areas 1 and 3), an observed floor, an unseen wall and an unseen ceiling, and an
+        // observed lamp whose emission keeps it out of every prior.
+        let colors = [[0.2, 0.4, 0.6], [0.6, 0.4, 0.2], [0.1, 0.1, 0.1], [0.5; 3], [0.5; 3], [0.9; 3]];
+        let emission = [[0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3], [5.0, 0.0, 0.0]];
+        let x = scene_x(&colors, &emission);
+        let cats = ["wall", "wall", "floor", "wall", "ceiling", "wall"].map(|s| Some(s.to_owned())).to_vec();
+        let prior = UnseenPrior::from_parts(
+            vec![1.0, 3.0, 4.0, 2.0, 2.0, 1.0],
+            cats,
+            vec![true, true, true, false, false, true],
+        );
+        assert_eq!(prior.unseen(), vec![3, 4]);
+        // Unseen wall: mean (1·0.2 + 3·0.6)/4 = 0.5 with sd √((0.09 + 3·0.01)/4) = 0.173; 0.4 with no spread
+        // (the floor of the sd); 0.3.
+        let p = prior.prior(&x, 3);
+        assert_eq!(p.source, PriorSource::SameCategory { category: "wall".into(), objects: 2 });
+        for (got, want) in p.mean.iter().zip([0.5, 0.4, 0.3]) {
+            assert!((got - want).abs() < 1e-12, "{p:?}");
+        }
+        assert!((p.sd[0] - 0.03f64.sqrt()).abs() < 1e-12 && p.sd[1] == MIN_PRIOR_SD, "{p:?}");
+        // Unseen ceiling: no observed ceiling, so all three non-emitting observed objects (areas 1, 3, 4).
+        let p = prior.prior(&x, 4);
+        assert_eq!(p.source, PriorSource::AllObserved { objects: 3 });
+        assert!((p.mean[0] - (0.2 + 1.8 + 0.4) / 8.0).abs() < 1e-12, "{p:?}");
+    }
+
+    #[test]
+    fn without_an_observed_non_emitter_the_start_value_is_an_uninformative_prior() {
+        let x = scene_x(&[[0.9; 3], [0.3; 3]], &[[1.0; 3], [0.0; 3]]);
+        let prior = UnseenPrior::from_parts(vec![1.0, 1.0], vec![None, None], vec![true, false]);
+        let p = prior.prior(&x, 1);
+        assert_eq!(p.source, PriorSource::StartValue);
+        assert_eq!(p.mean, [0.3; 3]);
+    }
+
+    #[test]
+    fn the_combination_weighs_estimate_and_prior_by_their_precision() {
+        let prior = Prior { mean: [0.5; 3], sd: [0.2; 3], source: PriorSource::AllObserved { objects: 4 } };
+        // A precise estimate wins, one with the prior's precision meets it halfway, none at all gives the prior.
+        let (v, w) = combine([0.9; 3], [0.002, 0.2, f64::INFINITY], &prior);
+        assert!((v[0] - 0.9).abs() < 1e-3 && w[0] > 0.999, "{v:?} {w:?}");
+        assert!((v[1] - 0.7).abs() < 1e-12 && (w[1] - 0.5).abs() < 1e-12, "{v:?} {w:?}");
+        assert_eq!((v[2], w[2]), (0.5, 0.0));
+        // Weights (1, 0.8, 0): the data decide on average.
+        let (v, w) = combine([0.9; 3], [0.002, 0.1, f64::INFINITY], &prior);
+        let text = describe(v, [0.9; 3], [0.002, 0.1, f64::INFINITY], w, &prior);
+        assert!(text.contains("estimated from the light it reflects"), "{text}");
+        let (v, w) = combine([0.9; 3], [1.0; 3], &prior);
+        assert!(describe(v, [0.9; 3], [1.0; 3], w, &prior).contains("mostly a prior"));
+    }
+}
