@@ -104,6 +104,10 @@ pub mod key {
     /// [`SECOND_ESTIMATE`]) behind the standard errors of the unseen objects' base colours
     /// ([`crate::fit::prior`]), and the draw of their pixels.
     pub const UNSEEN_PRIOR: u64 = SELECT + (9 << 20);
+    /// Model selection: object k's lobe without emission, the alternative its emission test weighs it against
+    /// (`SELECT_EMISSION_LOBE + 2k` dielectric, `+ 2k + 1` metal roughness search; the render of its arm at
+    /// `SELECT_EMISSION_TEST + k`, with the other arms).
+    pub const SELECT_EMISSION_LOBE: u64 = SELECT + (10 << 20);
     /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
     /// below it, the next field 2^20 above).
     pub const SELECT_STEP_CHECK: u64 = 1 << 19;

@@ -94,6 +94,58 @@ fn target(s: &Sample) -> [f64; 3] {
     [f64::from(s.target.x), f64::from(s.target.y), f64::from(s.target.z)]
 }
 
+/// Whether a training pixel belongs to the half that chooses lobes (the other half tests them).
+fn in_profile(seed: u64, t: &Sample) -> bool {
+    streams::uniform(seed, draw::PROFILE, streams::pixel_key(t.pixel), 0) < 0.5
+}
+
+/// Object k's pixels for a roughness search: its training pixels of the lobe-choosing half, at most
+/// [`PROFILE_PIXELS`] of them.
+fn profile_samples(ctx: &Ctx<'_>, sets: &PixelSets, k: usize) -> Vec<Sample> {
+    let own: Vec<Sample> =
+        sets.train.iter().filter(|t| t.object == Some(k as u32) && in_profile(ctx.seed, t)).copied().collect();
+    if own.len() <= PROFILE_PIXELS {
+        own
+    } else {
+        super::pixels::draw(&own, PROFILE_PIXELS, ctx.seed, draw::SOLVE_PIXELS, key::SELECT + k as u64)
+    }
+}
+
+/// The best lobe of object k with its emission off, dielectric (metallic 0) or metal (metallic 1), each by
+/// [`roughness::search`] from a mid-range lobe: what an object that reflects a light looks like when it does
+/// not emit. Returns `x` with that lobe and no emission for k, and the search's profile loss.
+fn best_lobe_without_emission(
+    ctx: &Ctx<'_>,
+    s: &ObjectFitSettings,
+    sets: &PixelSets,
+    x: &[f64],
+    k: usize,
+) -> Result<(Vec<f64>, f64), FitError> {
+    let samples = profile_samples(ctx, sets, k);
+    let mut best: Option<(Vec<f64>, f64)> = None;
+    for metallic in [0.0, 1.0] {
+        let mut base = x.to_vec();
+        for c in 0..3 {
+            base[idx(k, EMISSION + c)] = 0.0;
+        }
+        base[idx(k, SPECULAR)] = TRIAL_SPECULAR;
+        base[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
+        base[idx(k, METALLIC)] = metallic;
+        let search_key = key::SELECT_EMISSION_LOBE + 2 * k as u64 + metallic as u64;
+        let (p, _) = roughness::search(ctx, &base, k, &samples, (s.solve_spp / 2).max(1), search_key)?;
+        for c in 0..3 {
+            base[idx(k, BASE_COLOR + c)] = p.base_color[c];
+        }
+        base[idx(k, ROUGHNESS)] = p.roughness;
+        base[idx(k, SPECULAR)] = p.specular;
+        tracing::debug!(object = k, metallic, ?p, "lobe without emission");
+        if best.as_ref().is_none_or(|(_, l)| p.loss < *l) {
+            best = Some((base, p.loss));
+        }
+    }
+    Ok(best.expect("two candidates"))
+}
+
 /// Decides every object's model; returns the final parameters and the decisions. Reports one step per
 /// object to `progress`, at positions `position + 1 ..= position + objects`.
 pub fn choose_models(
@@ -134,7 +186,6 @@ pub fn choose_models(
         // all of its held-out pixels, then training pixels up to the budget (2048 detect a 4 % gain on glossy
         // highlights at t > 3, `object.holdout_pixels` in configs/README.md; a large object's 4096 doubled the
         // test's renders, the largest cost of a 213-object house's object stage).
-        let in_profile = |t: &Sample| streams::uniform(ctx.seed, draw::PROFILE, streams::pixel_key(t.pixel), 0) < 0.5;
         let lobe_test: Vec<Sample> = test
             .iter()
             .copied()
@@ -147,19 +198,13 @@ pub fn choose_models(
                 }
                 let room = |o: Option<u32>| budget.saturating_sub(held.get(&o).copied().unwrap_or(0));
                 let rank = |t: &Sample| streams::uniform(ctx.seed, draw::PROFILE, streams::pixel_key(t.pixel), 1);
-                let half: Vec<Sample> = sets.train.iter().filter(|t| !in_profile(t)).copied().collect();
+                let half: Vec<Sample> = sets.train.iter().filter(|t| !in_profile(ctx.seed, t)).copied().collect();
                 super::pixels::cap_per_object_each(half, room, rank).0
             })
             .collect();
         let mut xt = x.clone();
         for k in (0..k_count).filter(|&k| free[k]) {
-            let own: Vec<Sample> =
-                sets.train.iter().filter(|t| t.object == Some(k as u32) && in_profile(t)).copied().collect();
-            let samples = if own.len() <= PROFILE_PIXELS {
-                own
-            } else {
-                super::pixels::draw(&own, PROFILE_PIXELS, ctx.seed, draw::SOLVE_PIXELS, key::SELECT + k as u64)
-            };
+            let samples = profile_samples(ctx, sets, k);
             let mut base = x.clone();
             base[idx(k, SPECULAR)] = TRIAL_SPECULAR;
             base[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
@@ -373,14 +418,84 @@ pub fn choose_models(
         let (gain, t) = stratified_t(&d, &is_own, w_own, w_other);
         let mean_lit = tgt.iter().zip(&row_w).map(|(t, w)| w * l1(*t, [0.0; 3])).sum::<f64>();
         let rel = gain / mean_lit.max(f64::MIN_POSITIVE);
-        if t > T_KEEP && rel > MIN_GAIN * 1e-2 {
+        let beats = |t: f64, rel: f64| t > T_KEEP && rel > MIN_GAIN * 1e-2;
+        // An object the photos see may look like an emitter because it mirrors one: a rough metal beside a
+        // lamp is bright from most views, and with a diffuse lobe only an emission reproduces it (Modern Hall's
+        // `Metal` kept the colour of the light above it as its emission). So a seen emitter's emission must
+        // also beat its best lobe without emission, dielectric or metal, with the same random numbers, on its
+        // own pixels: there the two models differ to first order, while the pixels it lights were fitted
+        // around the incumbent model (a metal box under a lamp lost to its own emission by 4.8 % on all the
+        // lit pixels and won by a wide margin on its own).
+        let mut lobe: Option<(Vec<f64>, f64, f64, f64, f64)> = None;
+        let own_rows: Vec<usize> = (0..on.len()).filter(|&j| is_own[j]).collect();
+        if beats(t, rel) && free[k] && own_rows.len() >= 2 {
+            let (x_alt, _) = best_lobe_without_emission(ctx, s, sets, &x, k)?;
+            let own_px: Vec<PixelRef> = own_rows.iter().map(|&j| px[j]).collect();
+            let render_own = |p: &tracer::Params| -> Result<Vec<[f64; 3]>, FitError> {
+                Ok(ctx
+                    .render(p, &own_px, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
+                    .iter()
+                    .map(|v| v.as_dvec3().to_array())
+                    .collect())
+            };
+            let alt = render_own(&layout::to_params(&x_alt))?;
+            let mean_own = own_rows.iter().map(|&j| l1(tgt[j], [0.0; 3])).sum::<f64>() / own_rows.len() as f64;
+            let mean_own = mean_own.max(f64::MIN_POSITIVE);
+            let paired = |a: &dyn Fn(usize) -> [f64; 3], b: &dyn Fn(usize) -> [f64; 3]| {
+                let d: Vec<f64> =
+                    own_rows.iter().enumerate().map(|(i, &j)| l1(tgt[j], a(i)) - l1(tgt[j], b(i))).collect();
+                let (gain, t) = paired_t(&d);
+                (gain / mean_own, t)
+            };
+            // The emission against the lobe, and the lobe against the diffuse model without emission (the
+            // refitted `without` arm). Random numbers are keyed by the pixel, so the own pixels of the arms
+            // rendered above are the same estimates as a render of these pixels alone.
+            let with: Vec<[f64; 3]> = own_rows.iter().map(|&j| pred[j]).collect();
+            let (rel_alt, t_alt) = paired(&|i| alt[i], &|i| with[i]);
+            let (rel_lobe, t_lobe) = paired(&|i| without[own_rows[i]], &|i| alt[i]);
+            lobe = Some((x_alt, rel_alt, t_alt, rel_lobe, t_lobe));
+        }
+        let lobe_wins = lobe.as_ref().is_some_and(|&(_, rel_alt, t_alt, _, _)| !beats(t_alt, rel_alt));
+        if beats(t, rel) && !lobe_wins {
             emits[k] = true;
+            let against_lobe = lobe.as_ref().map_or(String::new(), |(_, rel_alt, t_alt, _, _)| {
+                format!("; against its best lobe without emission by {:.3} % (t = {t_alt:.1})", 100.0 * rel_alt)
+            });
             why[k].push(format!(
                 "emission kept: without it the {test_name} L1 of the {} pixels its light reaches (of {}) rises by \
-                 {:.3} % of their mean radiance (t = {t:.1})",
+                 {:.3} % of their mean radiance (t = {t:.1}){against_lobe}",
                 on.len(),
                 lit.len(),
                 100.0 * rel
+            ));
+        } else if let Some((x_alt, rel_alt, t_alt, rel_lobe, t_lobe)) = lobe.filter(|_| lobe_wins) {
+            let (r, m, sp) = (x_alt[idx(k, ROUGHNESS)], x_alt[idx(k, METALLIC)], x_alt[idx(k, SPECULAR)]);
+            let kind = if m > 0.5 { "metal" } else { "dielectric" };
+            let adopt = t_lobe > T_KEEP && rel_lobe > MIN_GAIN;
+            if adopt {
+                glossy[k] = true;
+                for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
+                    x[idx(k, p)] = x_alt[idx(k, p)];
+                }
+                // The rest of the scene was fitted around the emission (a metal box's emission had the lamp
+                // 11 % bright and the walls 5 % dark): emission and base colours are re-fitted below.
+                material_refit = true;
+            } else if delta.iter().any(|d| d.abs() > REFIT_MATERIAL) {
+                material_refit = true;
+            }
+            why[k].push(format!(
+                "emission {e:.4?} dropped: it beats the diffuse model without it (t = {t:.1}) but not its best {kind} \
+                 lobe without emission (roughness {r:.3}, specular {sp:.3}: the emission changes the {test_name} L1 \
+                 by {:+.4} %, t = {t_alt:.1}; needs t > {T_KEEP}); {}",
+                100.0 * rel_alt,
+                if adopt {
+                    format!(
+                        "the lobe is kept (it lowers the L1 by {:.2} % against diffuse, t = {t_lobe:.1})",
+                        100.0 * rel_lobe
+                    )
+                } else {
+                    format!("diffuse, as the lobe does not beat it (t = {t_lobe:.1})")
+                }
             ));
         } else {
             if delta.iter().any(|d| d.abs() > REFIT_MATERIAL) {
