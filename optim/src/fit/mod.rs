@@ -24,7 +24,9 @@
 //!    when it lowers the residual on the other half plus the held-out pixels significantly (paired t > 3 and a
 //!    gain > 0.5 % of the mean radiance); with lobes kept, the emission is re-solved (or, with
 //!    `specular_trial_steps` > 0, Gauss–Newton steps re-fit emission and base colour). An emission term is kept
-//!    only when it lowers the held-out residual significantly. Objects seen in fewer than 16 training pixels are
+//!    only when it lowers the held-out residual significantly, against the model without it and, for an
+//!    object the photos see, against its best dielectric or metal lobe without emission (an object that
+//!    mirrors a lamp is a metal, not a light). Objects seen in fewer than 16 training pixels are
 //!    reported unconstrained (no lobe trial).
 //! 5. **Objects no photo sees** ([`prior`]): steps 2–3 estimate their base colours too, through the light
 //!    they reflect onto the objects the photos see; each is then weighed against a stated prior (the

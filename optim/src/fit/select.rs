@@ -1,6 +1,8 @@
 //! Model selection per object: every object starts diffuse without emission and keeps an emission
 //! term or gains a specular lobe only when that lowers the residual on held-out pixels significantly (a
-//! paired t-test over the held-out pixels, plus a minimum relative improvement).
+//! paired t-test over the held-out pixels, plus a minimum relative improvement). An emission of an object
+//! the photos see must also beat the object's best lobe without emission, dielectric or metal (measured:
+//! docs/optim/design-measurements.md, "An emission against the best lobe without it").
 
 use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::jacobian::{self, Ctx};
