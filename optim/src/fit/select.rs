@@ -357,19 +357,22 @@ pub fn choose_models(
         // carry the same kind of Monte Carlo noise. (The render minus a separately estimated J_k e_k has the
         // column's noise in one arm only; the L1 of the noisier arm is larger on average, which kept spurious
         // faint emissions on Daylight Room's ceiling and wall.)
-        let arm = |params: &tracer::Params| -> Result<Vec<[f64; 3]>, FitError> {
+        let arm_on = |params: &tracer::Params, pixels: &[PixelRef]| -> Result<Vec<[f64; 3]>, FitError> {
             Ok(ctx
-                .render(params, &px, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
+                .render(params, pixels, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
                 .iter()
                 .map(|v| v.as_dvec3().to_array())
                 .collect())
         };
-        let pred = arm(&params)?;
-        let mut without = arm(&{
-            let mut p = params.clone();
-            p.emission[k] = glam::Vec3::ZERO;
-            p
-        })?;
+        let pred = arm_on(&params, &px)?;
+        let mut without = arm_on(
+            &{
+                let mut p = params.clone();
+                p.emission[k] = glam::Vec3::ZERO;
+                p
+            },
+            &px,
+        )?;
         // The model without an object's emission gets its own best base colour: a visible surface's emission
         // and albedo both explain its brightness, and comparing at the albedo fitted *with* the emission
         // favours keeping it. Measured on a room lit by a small lamp 1e4× brighter than the walls
@@ -433,14 +436,7 @@ pub fn choose_models(
         if beats(t, rel) && free[k] && own_rows.len() >= 2 {
             let (x_alt, _) = best_lobe_without_emission(ctx, s, sets, &x, k)?;
             let own_px: Vec<PixelRef> = own_rows.iter().map(|&j| px[j]).collect();
-            let render_own = |p: &tracer::Params| -> Result<Vec<[f64; 3]>, FitError> {
-                Ok(ctx
-                    .render(p, &own_px, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
-                    .iter()
-                    .map(|v| v.as_dvec3().to_array())
-                    .collect())
-            };
-            let alt = render_own(&layout::to_params(&x_alt))?;
+            let alt = arm_on(&layout::to_params(&x_alt), &own_px)?;
             let mean_own = own_rows.iter().map(|&j| l1(tgt[j], [0.0; 3])).sum::<f64>() / own_rows.len() as f64;
             let mean_own = mean_own.max(f64::MIN_POSITIVE);
             let paired = |a: &dyn Fn(usize) -> [f64; 3], b: &dyn Fn(usize) -> [f64; 3]| {
