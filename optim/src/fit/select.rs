@@ -115,14 +115,14 @@ fn profile_samples(ctx: &Ctx<'_>, sets: &PixelSets, k: usize) -> Vec<Sample> {
 
 /// The best lobe of object k with its emission off, dielectric (metallic 0) or metal (metallic 1), each by
 /// [`roughness::search`] from a mid-range lobe: what an object that reflects a light looks like when it does
-/// not emit. Returns `x` with that lobe and no emission for k, and the search's profile loss.
+/// not emit. Returns `x` with that lobe (the lower profile loss of the two) and no emission for k.
 fn best_lobe_without_emission(
     ctx: &Ctx<'_>,
     s: &ObjectFitSettings,
     sets: &PixelSets,
     x: &[f64],
     k: usize,
-) -> Result<(Vec<f64>, f64), FitError> {
+) -> Result<Vec<f64>, FitError> {
     let samples = profile_samples(ctx, sets, k);
     let mut best: Option<(Vec<f64>, f64)> = None;
     for metallic in [0.0, 1.0] {
@@ -145,7 +145,7 @@ fn best_lobe_without_emission(
             best = Some((base, p.loss));
         }
     }
-    Ok(best.expect("two candidates"))
+    Ok(best.expect("two candidates").0)
 }
 
 /// Decides every object's model; returns the final parameters and the decisions. Reports one step per
@@ -434,7 +434,7 @@ pub fn choose_models(
         let mut lobe: Option<(Vec<f64>, f64, f64, f64, f64)> = None;
         let own_rows: Vec<usize> = (0..on.len()).filter(|&j| is_own[j]).collect();
         if beats(t, rel) && free[k] && own_rows.len() >= 2 {
-            let (x_alt, _) = best_lobe_without_emission(ctx, s, sets, &x, k)?;
+            let x_alt = best_lobe_without_emission(ctx, s, sets, &x, k)?;
             let own_px: Vec<PixelRef> = own_rows.iter().map(|&j| px[j]).collect();
             let alt = arm_on(&layout::to_params(&x_alt), &own_px)?;
             let mean_own = own_rows.iter().map(|&j| l1(tgt[j], [0.0; 3])).sum::<f64>() / own_rows.len() as f64;
@@ -448,8 +448,7 @@ pub fn choose_models(
             // The emission against the lobe, and the lobe against the diffuse model without emission (the
             // refitted `without` arm). Random numbers are keyed by the pixel, so the own pixels of the arms
             // rendered above are the same estimates as a render of these pixels alone.
-            let with: Vec<[f64; 3]> = own_rows.iter().map(|&j| pred[j]).collect();
-            let (rel_alt, t_alt) = paired(&|i| alt[i], &|i| with[i]);
+            let (rel_alt, t_alt) = paired(&|i| alt[i], &|i| pred[own_rows[i]]);
             let (rel_lobe, t_lobe) = paired(&|i| without[own_rows[i]], &|i| alt[i]);
             lobe = Some((x_alt, rel_alt, t_alt, rel_lobe, t_lobe));
         }
