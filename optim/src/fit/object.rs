@@ -245,13 +245,14 @@ pub fn fit_objects(
                 s.solve_spp,
                 key::REFINE_CHECK + u64::from(it),
             )?;
-            if check.fraction < 1.0 {
+            if check.fraction < 1.0 || check.held_back() > 0 {
                 tracing::debug!(
                     iteration = it,
                     fraction = check.fraction,
+                    held_back = check.held_back(),
                     loss_start = check.loss_start,
                     loss_taken = check.loss_taken,
-                    "refinement step shortened: the full step was significantly worse on its own pixels"
+                    "refinement step shortened: the full step was significantly worse on its own pixels, or on some objects' own"
                 );
             }
             IterationRecord { step_fraction: check.fraction, ..record(&state.params, it, "refine", loss, 0.0) }

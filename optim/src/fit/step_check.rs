@@ -15,6 +15,12 @@
 //! (paired t above [`WORSE_T`]) is pulled halfway back, up to [`HALVINGS`] times; when no fraction of the step
 //! passes, the parameters stay where they were. A step that only scatters around the solution is as often
 //! better as worse on a draw and passes.
+//!
+//! A step can pass as a whole while one object's own pixels get much worse: a small object's few dozen rows
+//! weigh little against a thousand others in the paired mean, and its gross misfit inflates the standard error
+//! as much as the mean. So each object's own rows are also compared alone, and an object significantly worse
+//! on them ([`WORSE_T_OBJECT`]) has its share of the step (its parameters) pulled halfway back, up to the same
+//! number of times, and then returns to its start; the other objects keep theirs.
 
 use super::jacobian::Ctx;
 use super::layout;
@@ -31,19 +37,39 @@ pub const WORSE_T: f64 = 2.0;
 /// scatter of converged steps on the small room, so a smaller fraction would be noise.
 pub const HALVINGS: u32 = 3;
 
+/// An object's own pixels refuse its share of a step when their data term is worse than at the start by more
+/// than this many standard errors. Stricter than [`WORSE_T`] because it is applied once per object (with 31
+/// objects, t > 3 refuses a step that changes nothing on average for one object in about 25 steps), and the
+/// refusals it is for are gross: on Modern Hall single steps took a dark wood's base colour from 0.35 to 1 and
+/// a wall's from 0.9 to 0.3 while the step as a whole passed, the object's few dozen rows outweighed by a
+/// thousand others (docs/optim/design-measurements.md, "Small lamps and per-object step checks").
+pub const WORSE_T_OBJECT: f64 = 3.0;
+
 /// What the check did with one step.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct StepCheck {
-    /// Fraction of the step taken: 1, 1/2, …, 1/2^[`HALVINGS`], or 0 when every fraction was refused.
+    /// Fraction of the step taken by the objects the per-object check did not hold back: 1, 1/2, …,
+    /// 1/2^[`HALVINGS`], or 0 when every fraction was refused.
     pub fraction: f64,
+    /// Fraction of the step taken by each object's parameters (at most `fraction`).
+    pub fractions: Vec<f64>,
     /// Weighted mean data term at the start and at the point taken, on the step's pixels.
     pub loss_start: f64,
     pub loss_taken: f64,
 }
 
+impl StepCheck {
+    /// Objects whose own share of the step was cut below the common fraction.
+    #[must_use]
+    pub fn held_back(&self) -> usize {
+        self.fractions.iter().filter(|&&f| f < self.fraction).count()
+    }
+}
+
 /// Checks the step from `start` to `x` (flat parameter vectors of the same layout) on `draw` with `spp` paths
 /// per pixel keyed by `key`, and moves `x` to the largest fraction of the step that is not significantly
-/// worse than `start` (see the module docs). Both points lie in the parameter box, and so does every fraction.
+/// worse than `start` (see the module docs), with the share of each object whose own pixels it makes
+/// significantly worse cut back further. Both points lie in the parameter box, and so does every fraction.
 pub fn check_step(
     ctx: &Ctx<'_>,
     start: &[f64],
@@ -54,6 +80,7 @@ pub fn check_step(
 ) -> Result<StepCheck, TracerError> {
     let pixels: Vec<PixelRef> = draw.samples.iter().map(|s| s.pixel).collect();
     let m = pixels.len();
+    let k_count = start.len() / layout::PER_OBJECT;
     let weights: Vec<f64> = if draw.weights.len() == m { draw.weights.clone() } else { vec![1.0; m] };
     let groups: Vec<u32> = draw.samples.iter().map(|s| s.object.unwrap_or(u32::MAX)).collect();
     let residuals = |values: &[glam::Vec3], c: usize| -> Vec<f64> {
@@ -74,19 +101,66 @@ pub fn check_step(
     let loss_start = l0.iter().sum::<f64>() / (3 * m.max(1)) as f64;
     let candidate = x.to_vec();
     let mut fraction = 1.0;
-    for _ in 0..=HALVINGS {
-        for ((xi, &s), &c) in x.iter_mut().zip(start).zip(&candidate) {
-            *xi = s + fraction * (c - s);
+    let mut fractions = vec![1.0; k_count];
+    let mut rounds = 0;
+    loop {
+        for k in 0..k_count {
+            for p in 0..layout::PER_OBJECT {
+                let i = layout::idx(k, p);
+                x[i] = start[i] + fractions[k] * (candidate[i] - start[i]);
+            }
         }
         let v = ctx.render(&layout::to_params(x), &pixels, spp, key)?;
         let l1 = per_row(&std::array::from_fn(|c| residuals(&v, c)));
         let diff: Vec<f64> = l1.iter().zip(&l0).map(|(a, b)| a - b).collect();
+        let taken = StepCheck {
+            fraction,
+            fractions: fractions.clone(),
+            loss_start,
+            loss_taken: l1.iter().sum::<f64>() / (3 * m.max(1)) as f64,
+        };
         let (_, t) = paired_t(&diff);
-        if t <= WORSE_T {
-            return Ok(StepCheck { fraction, loss_start, loss_taken: l1.iter().sum::<f64>() / (3 * m.max(1)) as f64 });
+        let worse: Vec<usize> = if t > WORSE_T {
+            Vec::new()
+        } else {
+            (0..k_count)
+                .filter(|&k| fractions[k] > 0.0)
+                .filter(|&k| {
+                    let own: Vec<f64> = (0..m).filter(|&j| groups[j] == k as u32).map(|j| diff[j]).collect();
+                    paired_t(&own).1 > WORSE_T_OBJECT
+                })
+                .collect()
+        };
+        if t <= WORSE_T && worse.is_empty() {
+            return Ok(taken);
         }
-        fraction *= 0.5;
+        if rounds == HALVINGS {
+            if t > WORSE_T {
+                x.copy_from_slice(start);
+                return Ok(StepCheck {
+                    fraction: 0.0,
+                    fractions: vec![0.0; k_count],
+                    loss_start,
+                    loss_taken: loss_start,
+                });
+            }
+            // The step as a whole passes; the objects still worse on their own pixels return to their start
+            // (not rendered again: `loss_taken` is that of the last fractions tried).
+            for &k in &worse {
+                for p in 0..layout::PER_OBJECT {
+                    let i = layout::idx(k, p);
+                    x[i] = start[i];
+                }
+                fractions[k] = 0.0;
+            }
+            return Ok(StepCheck { fractions, ..taken });
+        }
+        rounds += 1;
+        if t > WORSE_T {
+            fraction *= 0.5;
+            fractions.iter_mut().for_each(|f| *f = f.min(fraction));
+        } else {
+            worse.iter().for_each(|&k| fractions[k] *= 0.5);
+        }
     }
-    x.copy_from_slice(start);
-    Ok(StepCheck { fraction: 0.0, loss_start, loss_taken: loss_start })
 }
