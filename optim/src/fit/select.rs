@@ -210,6 +210,15 @@ fn refit_base_color(
 /// paired t-statistic has under 3 degrees of freedom.
 const MIN_GLIMPSE_PIXELS: usize = 4;
 
+/// A seen emitter's best lobe without emission ([`best_lobe_without_emission`]) and how it fared on the
+/// emitter's own pixels: (relative gain, t) of the emission against the lobe, and of the lobe against the
+/// diffuse model without emission.
+struct LobeAlternative {
+    x: Vec<f64>,
+    emission_against_lobe: (f64, f64),
+    lobe_against_diffuse: (f64, f64),
+}
+
 /// The verdict of [`glimpse_test`].
 struct Glimpse {
     pixels: usize,
@@ -556,7 +565,7 @@ pub fn choose_models(
         // own pixels: there the two models differ to first order, while the pixels it lights were fitted
         // around the incumbent model (a metal box under a lamp lost to its own emission by 4.8 % on all the
         // lit pixels and won by a wide margin on its own).
-        let mut lobe: Option<(Vec<f64>, f64, f64, f64, f64)> = None;
+        let mut lobe: Option<LobeAlternative> = None;
         let own_rows: Vec<usize> = (0..on.len()).filter(|&j| is_own[j]).collect();
         if beats(t, rel) && free[k] && own_rows.len() >= 2 {
             let x_alt = best_lobe_without_emission(ctx, s, &profile_samples(ctx, sets, k), &x, k)?;
@@ -573,11 +582,13 @@ pub fn choose_models(
             // The emission against the lobe, and the lobe against the diffuse model without emission (the
             // refitted `without` arm). Random numbers are keyed by the pixel, so the own pixels of the arms
             // rendered above are the same estimates as a render of these pixels alone.
-            let (rel_alt, t_alt) = paired(&|i| alt[i], &|i| pred[own_rows[i]]);
-            let (rel_lobe, t_lobe) = paired(&|i| without[own_rows[i]], &|i| alt[i]);
-            lobe = Some((x_alt, rel_alt, t_alt, rel_lobe, t_lobe));
+            lobe = Some(LobeAlternative {
+                emission_against_lobe: paired(&|i| alt[i], &|i| pred[own_rows[i]]),
+                lobe_against_diffuse: paired(&|i| without[own_rows[i]], &|i| alt[i]),
+                x: x_alt,
+            });
         }
-        let lobe_wins = lobe.as_ref().is_some_and(|&(_, rel_alt, t_alt, _, _)| !beats(t_alt, rel_alt));
+        let lobe_wins = lobe.as_ref().is_some_and(|l| !beats(l.emission_against_lobe.1, l.emission_against_lobe.0));
         // An emitter the pixels it lights do not keep is tested where it is seen ([`glimpse_test`]).
         let glimpse = if !beats(t, rel) { glimpse_test(ctx, s, sets, &params, &x, k)? } else { None };
         let glimpse_keeps = glimpse
@@ -602,7 +613,8 @@ pub fn choose_models(
             ));
         } else if beats(t, rel) && !lobe_wins {
             emits[k] = true;
-            let against_lobe = lobe.as_ref().map_or(String::new(), |(_, rel_alt, t_alt, _, _)| {
+            let against_lobe = lobe.as_ref().map_or(String::new(), |l| {
+                let (rel_alt, t_alt) = l.emission_against_lobe;
                 format!("; against its best lobe without emission by {:.3} % (t = {t_alt:.1})", 100.0 * rel_alt)
             });
             why[k].push(format!(
@@ -612,7 +624,12 @@ pub fn choose_models(
                 lit.len(),
                 100.0 * rel
             ));
-        } else if let Some((x_alt, rel_alt, t_alt, rel_lobe, t_lobe)) = lobe.filter(|_| lobe_wins) {
+        } else if let Some(LobeAlternative {
+            x: x_alt,
+            emission_against_lobe: (rel_alt, t_alt),
+            lobe_against_diffuse: (rel_lobe, t_lobe),
+        }) = lobe.filter(|_| lobe_wins)
+        {
             let (r, m, sp) = (x_alt[idx(k, ROUGHNESS)], x_alt[idx(k, METALLIC)], x_alt[idx(k, SPECULAR)]);
             let kind = if m > 0.5 { "metal" } else { "dielectric" };
             let adopt = t_lobe > T_KEEP && rel_lobe > MIN_GAIN;
