@@ -26,14 +26,22 @@ fn truth(built: &lab::synth::BuiltScene) -> Vec<f64> {
     x
 }
 
-#[test]
-fn a_step_towards_the_truth_is_taken_and_a_harmful_one_is_cut_back() {
+/// The small room, its photos' pixel sets (every pixel for training) and a solve draw of 1024 of them (32 per
+/// object at least).
+fn small_room() -> (lab::synth::BuiltScene, pixels::PixelSets, pixels::WeightedDraw) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/small.toml");
     let built = lab::synth::build(lab::synth::load_desc(&path).unwrap(), &path).unwrap();
     let images = lab::synth::photos(&built).unwrap();
     let k_count = built.desc.objects.len();
     let sets = pixels::collect(&built.scene, &built.cameras, &images, k_count, 0.0, usize::MAX, usize::MAX, 0);
     let draw = pixels::draw_stratified(&sets.train, 1024, 32, 3, optim::streams::draw::SOLVE_PIXELS, 1);
+    (built, sets, draw)
+}
+
+#[test]
+fn a_step_towards_the_truth_is_taken_and_a_harmful_one_is_cut_back() {
+    let (built, sets, draw) = small_room();
+    let k_count = built.desc.objects.len();
     let counter = SampleCounter::default();
     let ctx =
         Ctx { scene: &built.scene, cameras: &built.cameras, settings: &built.settings, seed: 3, samples: &counter };
@@ -83,12 +91,8 @@ fn a_step_towards_the_truth_is_taken_and_a_harmful_one_is_cut_back() {
 
 #[test]
 fn a_step_that_harms_one_object_holds_back_only_that_object() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/small.toml");
-    let built = lab::synth::build(lab::synth::load_desc(&path).unwrap(), &path).unwrap();
-    let images = lab::synth::photos(&built).unwrap();
+    let (built, sets, draw) = small_room();
     let k_count = built.desc.objects.len();
-    let sets = pixels::collect(&built.scene, &built.cameras, &images, k_count, 0.0, usize::MAX, usize::MAX, 0);
-    let draw = pixels::draw_stratified(&sets.train, 1024, 32, 3, optim::streams::draw::SOLVE_PIXELS, 1);
     let counter = SampleCounter::default();
     let ctx =
         Ctx { scene: &built.scene, cameras: &built.cameras, settings: &built.settings, seed: 3, samples: &counter };

@@ -206,6 +206,23 @@ fn refit_base_color(
     Ok(delta)
 }
 
+/// One arm of object k's emission test: `params` rendered on `pixels` at `holdout_spp` with the test's random
+/// numbers, which are keyed by the pixel, so every arm of k's tests (the main test's, the lobe alternative's,
+/// [`glimpse_test`]'s) gets the same estimates on the same pixels (common random numbers).
+fn emission_test_arm(
+    ctx: &Ctx<'_>,
+    s: &ObjectFitSettings,
+    k: usize,
+    params: &tracer::Params,
+    pixels: &[PixelRef],
+) -> Result<Vec<[f64; 3]>, FitError> {
+    Ok(ctx
+        .render(params, pixels, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
+        .iter()
+        .map(|v| v.as_dvec3().to_array())
+        .collect())
+}
+
 /// Pixels an object must be seen in for its emission to be tested on them ([`glimpse_test`]): with fewer, a
 /// paired t-statistic has under 3 degrees of freedom.
 const MIN_GLIMPSE_PIXELS: usize = 4;
@@ -271,14 +288,7 @@ fn glimpse_test(
     if e_sum < 0.5 * MIN_OWN_GAIN * mean {
         return Ok(None);
     }
-    // Keyed like the main test's arms (random numbers keyed by the pixel): the same estimates on the same pixels.
-    let arm = |p: &tracer::Params| -> Result<Vec<[f64; 3]>, FitError> {
-        Ok(ctx
-            .render(p, &px, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
-            .iter()
-            .map(|v| v.as_dvec3().to_array())
-            .collect())
-    };
+    let arm = |p: &tracer::Params| emission_test_arm(ctx, s, k, p, &px);
     let pred = arm(params)?;
     let mut without = arm(&{
         let mut p = params.clone();
@@ -525,13 +535,7 @@ pub fn choose_models(
         // carry the same kind of Monte Carlo noise. (The render minus a separately estimated J_k e_k has the
         // column's noise in one arm only; the L1 of the noisier arm is larger on average, which kept spurious
         // faint emissions on Daylight Room's ceiling and wall.)
-        let arm_on = |params: &tracer::Params, pixels: &[PixelRef]| -> Result<Vec<[f64; 3]>, FitError> {
-            Ok(ctx
-                .render(params, pixels, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
-                .iter()
-                .map(|v| v.as_dvec3().to_array())
-                .collect())
-        };
+        let arm_on = |params: &tracer::Params, pixels: &[PixelRef]| emission_test_arm(ctx, s, k, params, pixels);
         let pred = arm_on(&params, &px)?;
         let mut without = arm_on(
             &{
@@ -591,12 +595,11 @@ pub fn choose_models(
         let lobe_wins = lobe.as_ref().is_some_and(|l| !beats(l.emission_against_lobe.1, l.emission_against_lobe.0));
         // An emitter the pixels it lights do not keep is tested where it is seen ([`glimpse_test`]).
         let glimpse = if !beats(t, rel) { glimpse_test(ctx, s, sets, &params, &x, k)? } else { None };
-        let glimpse_keeps = glimpse
+        let glimpse_kept = glimpse
             .as_ref()
-            .is_some_and(|g| glimpse_gain(g.against_diffuse) && g.against_lobe.is_some_and(glimpse_gain));
-        if glimpse_keeps {
-            let g = glimpse.as_ref().expect("glimpse_keeps implies a glimpse");
-            let lobe = g.against_lobe.expect("glimpse_keeps implies the lobe was searched");
+            .filter(|g| glimpse_gain(g.against_diffuse))
+            .and_then(|g| g.against_lobe.filter(|&l| glimpse_gain(l)).map(|l| (g, l)));
+        if let Some((g, lobe)) = glimpse_kept {
             emits[k] = true;
             why[k].push(format!(
                 "emission kept: the {} {} pixels that see it are fitted better with it than with its best base \

@@ -100,25 +100,31 @@ pub fn check_step(
     let l0 = per_row(&r0);
     let loss_start = l0.iter().sum::<f64>() / (3 * m.max(1)) as f64;
     let candidate = x.to_vec();
+    // Each object's rows, once: the per-object comparisons read them every round.
+    let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); k_count];
+    for (j, &g) in groups.iter().enumerate() {
+        if let Some(rows) = rows_of.get_mut(g as usize) {
+            rows.push(j);
+        }
+    }
+    // x at object k's fraction of the step, for every k.
+    let place = |x: &mut [f64], fractions: &[f64]| {
+        for (k, f) in fractions.iter().enumerate() {
+            for p in 0..layout::PER_OBJECT {
+                let i = layout::idx(k, p);
+                x[i] = start[i] + f * (candidate[i] - start[i]);
+            }
+        }
+    };
     let mut fraction = 1.0;
     let mut fractions = vec![1.0; k_count];
     let mut rounds = 0;
     loop {
-        for k in 0..k_count {
-            for p in 0..layout::PER_OBJECT {
-                let i = layout::idx(k, p);
-                x[i] = start[i] + fractions[k] * (candidate[i] - start[i]);
-            }
-        }
+        place(x, &fractions);
         let v = ctx.render(&layout::to_params(x), &pixels, spp, key)?;
         let l1 = per_row(&std::array::from_fn(|c| residuals(&v, c)));
+        let loss_taken = l1.iter().sum::<f64>() / (3 * m.max(1)) as f64;
         let diff: Vec<f64> = l1.iter().zip(&l0).map(|(a, b)| a - b).collect();
-        let taken = StepCheck {
-            fraction,
-            fractions: fractions.clone(),
-            loss_start,
-            loss_taken: l1.iter().sum::<f64>() / (3 * m.max(1)) as f64,
-        };
         let (_, t) = paired_t(&diff);
         let worse: Vec<usize> = if t > WORSE_T {
             Vec::new()
@@ -126,13 +132,13 @@ pub fn check_step(
             (0..k_count)
                 .filter(|&k| fractions[k] > 0.0)
                 .filter(|&k| {
-                    let own: Vec<f64> = (0..m).filter(|&j| groups[j] == k as u32).map(|j| diff[j]).collect();
+                    let own: Vec<f64> = rows_of[k].iter().map(|&j| diff[j]).collect();
                     paired_t(&own).1 > WORSE_T_OBJECT
                 })
                 .collect()
         };
         if t <= WORSE_T && worse.is_empty() {
-            return Ok(taken);
+            return Ok(StepCheck { fraction, fractions, loss_start, loss_taken });
         }
         if rounds == HALVINGS {
             if t > WORSE_T {
@@ -146,14 +152,9 @@ pub fn check_step(
             }
             // The step as a whole passes; the objects still worse on their own pixels return to their start
             // (not rendered again: `loss_taken` is that of the last fractions tried).
-            for &k in &worse {
-                for p in 0..layout::PER_OBJECT {
-                    let i = layout::idx(k, p);
-                    x[i] = start[i];
-                }
-                fractions[k] = 0.0;
-            }
-            return Ok(StepCheck { fractions, ..taken });
+            worse.iter().for_each(|&k| fractions[k] = 0.0);
+            place(x, &fractions);
+            return Ok(StepCheck { fraction, fractions, loss_start, loss_taken });
         }
         rounds += 1;
         if t > WORSE_T {
