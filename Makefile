@@ -56,3 +56,12 @@ corpus:
 	  echo "corpus: $$s -> $(CORPUS_DIR)/$$s"; \
 	  scripts/corpus build $$s $(CORPUS_DIR)/$$s --threads $(CORPUS_THREADS) || exit 1; \
 	done
+
+# The quality presets on the built corpus (`lab bench realistic`, release build): the whole pipeline per scene
+# and preset, scored; runs kept under CORPUS_DIR/bench-runs and read back when rerun; tables and plot into
+# docs/realistic/bench/. A scene not yet built is named in a one-line error (`make corpus` builds it).
+BENCH_SCENES ?= room-textured,room-two-lights,room-daylight,modern-hall
+.PHONY: bench-realistic
+bench-realistic: setup
+	$(CARGO) build --release -p lab -p pipeline
+	target/release/lab bench realistic --corpus $(CORPUS_DIR) --scenes $(BENCH_SCENES) --out docs/realistic/bench

@@ -1,12 +1,12 @@
 //! `lab`: the development commands. `lab synth DESC OUT_DIR` generates a synthetic Matterport-layout scan;
-//! `lab bench tradeoff | ablation | mitsuba | scale` measure the fit's speed against its accuracy (docs/tradeoff/).
+//! `lab bench tradeoff | ablation | mitsuba | scale | realistic` measure the fit's speed against its accuracy (docs/tradeoff/).
 //! Exit codes: 0 success, 1 failure, 2 bad usage.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use lab::bench::{self, ablation, mitsuba, scale, tradeoff};
+use lab::bench::{self, ablation, mitsuba, realistic, scale, tradeoff};
 
 /// Development tools of ipt: synthetic scans and benchmarks.
 #[derive(Debug, Parser)]
@@ -42,6 +42,8 @@ enum BenchCommand {
     Mitsuba(BenchMitsubaArgs),
     /// The whole pipeline on scans of growing size: time, CPU, peak RSS per stage, accuracy (docs/scale/).
     Scale(BenchScaleArgs),
+    /// The quality presets on the realistic corpus (Mitsuba renders): cost per stage and the corpus scores.
+    Realistic(BenchRealisticArgs),
     /// One point of `scale`, in its own process (internal).
     #[command(hide = true)]
     ScalePoint(BenchScalePointArgs),
@@ -110,6 +112,54 @@ struct BenchScaleArgs {
     /// Workspace root holding `data-fixtures/`.
     #[arg(long)]
     workspace: Option<PathBuf>,
+}
+
+/// `lab bench realistic`.
+#[derive(Debug, clap::Args)]
+struct BenchRealisticArgs {
+    /// Directory holding the built corpus scans, one per scene (`make corpus`; default `$CORPUS_DIR`, else
+    /// `~/.cache/ipt/corpus`).
+    #[arg(long, default_value_os_t = default_corpus())]
+    corpus: PathBuf,
+    /// Scenes (subdirectories of `--corpus`), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = realistic::DEFAULT_SCENES.map(String::from))]
+    scenes: Vec<String>,
+    /// Quality presets, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = realistic::DEFAULT_PRESETS.map(String::from))]
+    presets: Vec<String>,
+    /// Output directory of realistic.{csv,md,svg}.
+    #[arg(long, default_value = "docs/realistic/bench")]
+    out: PathBuf,
+    /// Where the runs are kept (default `<corpus>/bench-runs`); a finished run there is read back, not rerun.
+    #[arg(long)]
+    runs: Option<PathBuf>,
+    /// Run and score again even where a finished run is kept.
+    #[arg(long)]
+    fresh: bool,
+    /// Config override for every run (`--set object.seed=1`).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Paths per pixel of the scorer's novel-view re-renders.
+    #[arg(long, default_value_t = 128)]
+    render_spp: u32,
+    /// Python of the validation venv (default `<workspace>/deps/venv/bin/python`).
+    #[arg(long)]
+    python: Option<PathBuf>,
+    /// `pipeline` binary the scorer renders with (default: the one beside this binary).
+    #[arg(long)]
+    pipeline: Option<PathBuf>,
+    /// Workspace root holding `tests/validation/`.
+    #[arg(long)]
+    workspace: Option<PathBuf>,
+}
+
+/// `$CORPUS_DIR`, else `~/.cache/ipt/corpus` (the Makefile's `corpus` target writes there).
+fn default_corpus() -> PathBuf {
+    if let Some(d) = std::env::var_os("CORPUS_DIR") {
+        return PathBuf::from(d);
+    }
+    std::env::var_os("HOME")
+        .map_or_else(|| PathBuf::from(".cache/ipt/corpus"), |h| PathBuf::from(h).join(".cache/ipt/corpus"))
 }
 
 /// `lab bench scale-point`.
@@ -226,6 +276,25 @@ fn run_bench(what: BenchCommand) -> anyhow::Result<()> {
             };
             scale::run(&opts, |line| eprintln!("bench scale: {line}"))?;
             eprintln!("bench: wrote {}/scale.{{csv,svg,md}}", a.out.display());
+        }
+        BenchCommand::Realistic(a) => {
+            let workspace = ws(a.workspace);
+            let beside = std::env::current_exe()?.with_file_name("pipeline");
+            let opts = realistic::RealisticOptions {
+                python: a.python.unwrap_or_else(|| workspace.join("deps/venv/bin/python")),
+                pipeline: a.pipeline.unwrap_or(beside),
+                workspace,
+                corpus: a.corpus,
+                scenes: a.scenes,
+                presets: a.presets,
+                out: a.out.clone(),
+                runs: a.runs,
+                set: a.set,
+                render_spp: a.render_spp,
+                fresh: a.fresh,
+            };
+            realistic::run(&opts, |line| eprintln!("bench realistic: {line}"))?;
+            eprintln!("bench: wrote {}/realistic.{{csv,md,svg}}", a.out.display());
         }
         BenchCommand::ScalePoint(a) => scale::run_point(&a.config, &a.set, &a.stats)?,
     }

@@ -31,6 +31,15 @@ def pipeline_binary() -> Path:
     return exe
 
 
+@functools.cache
+def lab_binary() -> Path:
+    """Path of the debug `lab` binary (synthetic scans, benchmarks), built or refreshed once per session."""
+    subprocess.run(["cargo", "build", "--quiet", "-p", "lab", "--bin", "lab"], cwd=ROOT, check=True)
+    exe = TARGET / "debug" / "lab"
+    assert exe.exists(), exe
+    return exe
+
+
 def read_exr_channels(path) -> dict:
     """Every channel of an EXR file as float64 arrays, keyed by channel name."""
     with OpenEXR.File(str(path), separate_channels=True) as f:

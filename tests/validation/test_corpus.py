@@ -2,9 +2,12 @@
 invariants a wrong conversion breaks: PLY segment ids = ground-truth ids, emitters wound toward their
 emitting side, finite non-negative photos, the hidden light in no training photo, areas kept, z up; the
 scorer's perfect and perturbed scores; and the same on Bitterli's Modern Hall when ../shared/data has it."""
+import csv
 import json
 import math
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -13,7 +16,7 @@ pytest.importorskip("mitsuba", reason="Mitsuba 3 is not installed in this Python
 pytest.importorskip("plyfile", reason="plyfile is not installed (deps/venv)")
 
 from corpus import convert, generate, layout, scan, scenes, score  # noqa: E402
-from support import SHARED_DATA  # noqa: E402
+from support import ROOT, SHARED_DATA, lab_binary, pipeline_binary  # noqa: E402
 
 AREA_TOLERANCE = 2e-3  # relative: a 64-gon fan keeps 99.84 % of a disk; meshes and rectangles are exact
 
@@ -328,3 +331,41 @@ def test_rerender_gives_a_lab_synth_scan_mitsubas_photos_of_the_same_scene(tmp_p
         assert not np.array_equal(theirs, ours)
         rel = np.abs(theirs.mean(axis=(0, 1)) / ours.mean(axis=(0, 1)) - 1.0)
         assert rel.max() < 0.04, (path.name, rel)
+
+
+def test_bench_realistic_runs_scores_and_keeps_its_runs(tiny, tmp_path):
+    """`lab bench realistic` on the tiny scan at the preview preset: the whole pipeline in its own process,
+    scored by this package's scorer; the CSV holds every stage's cost and the scores, the markdown a row for the
+    run; a second invocation reads the kept run back instead of running it again."""
+    corpus = tmp_path / "corpus"
+    corpus.mkdir()
+    (corpus / "tiny").symlink_to(tiny)
+    out, runs = tmp_path / "out", tmp_path / "runs"
+    cmd = [str(lab_binary()), "bench", "realistic", "--workspace", str(ROOT), "--corpus", str(corpus),
+           "--scenes", "tiny", "--presets", "preview", "--out", str(out), "--runs", str(runs), "--render-spp", "4",
+           "--python", sys.executable, "--pipeline", str(pipeline_binary()), "--set", "export.report_spp=4"]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-2000:]
+    with open(out / "realistic.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == ["scene", "preset", "metric", "subset", "value", "count"]
+    assert {(r["scene"], r["preset"]) for r in rows} == {("tiny", "preview")}
+    values = {(r["metric"], r["subset"]): float(r["value"]) for r in rows}
+    for stage in ("ingest", "preprocess", "object", "triangle", "export", "total"):
+        for metric in ("wall_s", "cpu_s", "peak_rss_mb"):
+            assert (metric, stage) in values, (metric, stage)
+    assert values[("cpu_s", "total")] > 0 and values[("peak_rss_mb", "total")] > 0
+    for key in (("albedo_psnr", "export"), ("albedo_l1", "all"), ("emitter_iou", "objects"),
+                ("emission_rel_error", "mean"), ("novel_psnr", "run"), ("novel_psnr", "truth-materials")):
+        assert key in values, key
+    assert 0 <= values[("emitter_iou", "objects")] <= 1
+    assert math.isfinite(values[("novel_psnr", "run")])
+    assert "| tiny | preview |" in (out / "realistic.md").read_text()
+    assert (out / "realistic.svg").read_text().lstrip().startswith("<svg")
+
+    cost = runs / "tiny" / "preview" / "cost.json"
+    stamp, table = cost.stat().st_mtime_ns, (out / "realistic.csv").read_text()
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert cost.stat().st_mtime_ns == stamp
+    assert (out / "realistic.csv").read_text() == table

@@ -163,15 +163,12 @@ pub fn run(
         let m = Manifest::build(stage.name(), config_sha256, inputs, &plan.output, &outputs).map_err(manifest_err)?;
         m.write(&dir).map_err(manifest_err)?;
         tracing::info!(stage = stage.name(), outputs = outputs.len(), "stage finished");
-        let cpu =
-            crate::process_stats::cpu_time_s().map(|c| format!(", CPU {:.1} s", c - cpu_before)).unwrap_or_default();
-        let rss = crate::process_stats::peak_rss_bytes()
-            .map(|b| format!(", peak RSS {:.0} MB", b as f64 / 1e6))
-            .unwrap_or_default();
-        reporter.note(
-            stage,
-            &format!("done ({} outputs, {:.1} s{cpu}{rss})", outputs.len(), started.elapsed().as_secs_f64()),
-        );
+        let cost = StageCost {
+            wall_s: started.elapsed().as_secs_f64(),
+            cpu_s: crate::process_stats::cpu_time_s().map(|c| c - cpu_before),
+            peak_rss_mb: crate::process_stats::peak_rss_bytes().map(|b| b as f64 / 1e6),
+        };
+        reporter.note(stage, &cost.done_message(outputs.len()));
         reran.get_or_insert(stage);
         outcomes.push((stage, StageOutcome::Ran(reason)));
     }
@@ -239,6 +236,48 @@ fn remove_stale_temporaries(dir: &std::path::Path) {
     }
 }
 
+/// What a stage cost, as the process measured itself: wall time, CPU time of the whole process during the stage
+/// (all threads), and the process's peak RSS so far (`VmHWM`). Reported as the stage's last message, which
+/// [`StageCost::parse_done_message`] reads back from a run log (the benchmarks' per-stage costs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StageCost {
+    pub wall_s: f64,
+    pub cpu_s: Option<f64>,
+    pub peak_rss_mb: Option<f64>,
+}
+
+impl StageCost {
+    /// `done (2 outputs, 186.6 s, CPU 295.8 s, peak RSS 179 MB)`.
+    #[must_use]
+    pub fn done_message(&self, outputs: usize) -> String {
+        let cpu = self.cpu_s.map(|c| format!(", CPU {c:.1} s")).unwrap_or_default();
+        let rss = self.peak_rss_mb.map(|m| format!(", peak RSS {m:.0} MB")).unwrap_or_default();
+        format!("done ({outputs} outputs, {:.1} s{cpu}{rss})", self.wall_s)
+    }
+
+    /// The cost in a message written by [`Self::done_message`] (anything before `done (` is ignored, so a
+    /// whole run-log line may be given); `None` for any other message.
+    #[must_use]
+    pub fn parse_done_message(line: &str) -> Option<Self> {
+        let (_, rest) = line.split_once("done (")?;
+        let inner = rest.strip_suffix(')')?;
+        let mut parts = inner.split(", ");
+        parts.next()?.strip_suffix(" outputs")?.parse::<usize>().ok()?;
+        let wall_s = parts.next()?.strip_suffix(" s")?.parse().ok()?;
+        let (mut cpu_s, mut peak_rss_mb) = (None, None);
+        for p in parts {
+            if let Some(v) = p.strip_prefix("CPU ").and_then(|v| v.strip_suffix(" s")) {
+                cpu_s = Some(v.parse().ok()?);
+            } else if let Some(v) = p.strip_prefix("peak RSS ").and_then(|v| v.strip_suffix(" MB")) {
+                peak_rss_mb = Some(v.parse().ok()?);
+            } else {
+                return None;
+            }
+        }
+        Some(Self { wall_s, cpu_s, peak_rss_mb })
+    }
+}
+
 fn announce(reporter: &dyn Reporter, stage: StageId, what: &str, why: &str) {
     tracing::info!(stage = stage.name(), what, why, "stage decision");
     reporter.note(stage, &format!("{what}: {why}"));
@@ -247,6 +286,18 @@ fn announce(reporter: &dyn Reporter, stage: StageId, what: &str, why: &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_done_message_reads_back_as_its_cost() {
+        let c = StageCost { wall_s: 186.6, cpu_s: Some(295.8), peak_rss_mb: Some(179.0) };
+        let line = format!("1795626138 [object] {}", c.done_message(2));
+        assert_eq!(line, "1795626138 [object] done (2 outputs, 186.6 s, CPU 295.8 s, peak RSS 179 MB)");
+        assert_eq!(StageCost::parse_done_message(&line), Some(c));
+        let bare = StageCost { wall_s: 0.5, cpu_s: None, peak_rss_mb: None };
+        assert_eq!(StageCost::parse_done_message(&bare.done_message(0)), Some(bare));
+        assert_eq!(StageCost::parse_done_message("[object] fit: 37/212, 1m12s left"), None);
+        assert_eq!(StageCost::parse_done_message("done (two outputs, 1 s)"), None);
+    }
 
     /// Writes one file per stage whose content is a function of the stage's config and inputs (as a real
     /// stage's would be), and counts calls.

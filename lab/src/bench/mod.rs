@@ -13,6 +13,8 @@
 //!   budget between value and gradient paths.
 //! - [`scale`]: the whole pipeline on scans of growing size (triangles, objects, photos, resolution), each
 //!   point in its own process: wall and CPU time and peak RSS per stage, held-out pixels, accuracy.
+//! - [`realistic`]: the quality presets on the realistic corpus (Mitsuba renders, docs/realistic/): the
+//!   whole pipeline per scan and preset in its own process, costs per stage, the corpus scorer's accuracy.
 //! - [`mitsuba`]: runs the Mitsuba baseline and our fit on the default scene in one process and reports the
 //!   time each needs to reach the same albedo error.
 //!
@@ -21,6 +23,7 @@
 pub mod ablation;
 pub mod metrics;
 pub mod mitsuba;
+pub mod realistic;
 pub mod scale;
 pub mod scenes;
 pub mod tradeoff;

@@ -209,27 +209,33 @@ struct Measured {
 }
 
 /// `/usr/bin/time -v`'s "Maximum resident set size (kbytes)", in MB.
-fn time_v_peak_rss_mb(stderr: &str) -> Option<f64> {
+pub(crate) fn time_v_peak_rss_mb(stderr: &str) -> Option<f64> {
     let line = stderr.lines().find(|l| l.contains("Maximum resident set size (kbytes)"))?;
     let kb: f64 = line.rsplit(':').next()?.trim().parse().ok()?;
     Some(kb * 1024.0 / 1e6)
 }
 
-fn measure(p: Point, opts: &ScaleOptions, work: &Path) -> Result<Measured, BenchError> {
-    let dir = work.join(format!("{}-{}", p.axis, p.value));
-    let scan = dir.join("scan");
-    let desc_path = opts.workspace.join("data-fixtures/scenes/demo.toml");
-    let built = synth::build(p.desc.clone(), &desc_path)?;
-    synth::write_scan(&built, &scan)?;
-    let config = dir.join("run.toml");
-    let text = format!("[scan]\npath = {:?}\n[output]\npath = \"out\"\n", scan.to_string_lossy());
-    super::write_file(&config, text.as_bytes())?;
-    let stats = dir.join("stats.json");
+/// What running one config through every stage in its own process cost.
+#[derive(Debug, Clone)]
+pub(crate) struct ProcessRun {
+    /// Per stage, as the process measured itself.
+    pub costs: Vec<(String, StageCost)>,
+    /// Wall time of the whole process, start-up included.
+    pub wall_s: f64,
+    /// `/usr/bin/time -v`'s peak RSS (NaN where it is not installed).
+    pub time_v_peak_rss_mb: f64,
+    /// 1-minute load average when the process started.
+    pub load_avg_1m: f64,
+}
+
+/// Runs `lab bench scale-point CONFIG STATS` (this binary) under `/usr/bin/time -v` when it exists and reads
+/// the per-stage costs it wrote to `stats`.
+pub(crate) fn run_in_process(config: &Path, stats: &Path, set: &[String]) -> Result<ProcessRun, BenchError> {
     let exe = std::env::current_exe().map_err(|e| BenchError::Io { path: "lab".into(), message: e.to_string() })?;
     let mut args: Vec<String> = vec!["bench".into(), "scale-point".into()];
     args.push(config.to_string_lossy().into_owned());
     args.push(stats.to_string_lossy().into_owned());
-    for s in &opts.set {
+    for s in set {
         args.push("--set".into());
         args.push(s.clone());
     }
@@ -247,12 +253,26 @@ fn measure(p: Point, opts: &ScaleOptions, work: &Path) -> Result<Measured, Bench
     let wall_s = t0.elapsed().as_secs_f64();
     let stderr = String::from_utf8_lossy(&run.stderr);
     if !run.status.success() {
-        return Err(BenchError::Io { path: config, message: format!("point failed: {}", stderr.trim()) });
+        return Err(BenchError::Io { path: config.into(), message: format!("point failed: {}", stderr.trim()) });
     }
     let costs: Vec<(String, StageCost)> = serde_json::from_slice(
-        &std::fs::read(&stats).map_err(|e| BenchError::Io { path: stats.clone(), message: e.to_string() })?,
+        &std::fs::read(stats).map_err(|e| BenchError::Io { path: stats.into(), message: e.to_string() })?,
     )
-    .map_err(|e| BenchError::Io { path: stats.clone(), message: e.to_string() })?;
+    .map_err(|e| BenchError::Io { path: stats.into(), message: e.to_string() })?;
+    Ok(ProcessRun { costs, wall_s, time_v_peak_rss_mb: time_v_peak_rss_mb(&stderr).unwrap_or(f64::NAN), load_avg_1m })
+}
+
+fn measure(p: Point, opts: &ScaleOptions, work: &Path) -> Result<Measured, BenchError> {
+    let dir = work.join(format!("{}-{}", p.axis, p.value));
+    let scan = dir.join("scan");
+    let desc_path = opts.workspace.join("data-fixtures/scenes/demo.toml");
+    let built = synth::build(p.desc.clone(), &desc_path)?;
+    synth::write_scan(&built, &scan)?;
+    let config = dir.join("run.toml");
+    let text = format!("[scan]\npath = {:?}\n[output]\npath = \"out\"\n", scan.to_string_lossy());
+    super::write_file(&config, text.as_bytes())?;
+    let ProcessRun { costs, wall_s, time_v_peak_rss_mb, load_avg_1m } =
+        run_in_process(&config, &dir.join("stats.json"), &opts.set)?;
     let out = dir.join("out");
     let history = workflow::artefacts::object::read_history(&out)
         .map_err(|e| BenchError::Io { path: out.clone(), message: e.to_string() })?;
@@ -282,7 +302,7 @@ fn measure(p: Point, opts: &ScaleOptions, work: &Path) -> Result<Measured, Bench
         triangles,
         costs,
         wall_s,
-        time_v_peak_rss_mb: time_v_peak_rss_mb(&stderr).unwrap_or(f64::NAN),
+        time_v_peak_rss_mb,
         load_avg_1m,
         train_pixels: history.train_pixels,
         holdout_pixels: history.holdout_pixels,

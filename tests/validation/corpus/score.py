@@ -279,7 +279,7 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
             try:
                 render_novel(run_dir, scan_dir, out, pipeline, render_spp, materials)
             except (subprocess.CalledProcessError, OSError) as e:
-                log(f"pipeline render failed: {getattr(e, 'stderr', '') or e}"[-500:])
+                log(f"pipeline render failed: {str(getattr(e, 'stderr', '') or e)[-500:]}")
         ps, l1s = [], []
         for c in cameras:
             f = out / f"{c.name}.exr"
