@@ -114,6 +114,30 @@ pub fn spd_inverse_diagonal(a: &[f64], n: usize, wanted: &[usize]) -> Option<Vec
     out.iter().all(|v| v.is_finite()).then_some(out)
 }
 
+/// The diagonal entries `wanted` of the sandwich A⁻¹BA⁻¹ for a symmetric positive definite `a` (the bread) and
+/// a symmetric `b` (the meat), both row-major n×n: (A⁻¹BA⁻¹)_kk = u_kᵀ B u_k with u_k = A⁻¹e_k, one
+/// factorisation of A. `None` when `a` is singular to double precision. The variances of a few parameters of a
+/// weighted least-squares fit whose weights are not the rows' precisions (sampling weights), with B = Σ w²σ²
+/// J Jᵀ the rows' weighted noise.
+#[must_use]
+pub fn sandwich_diagonal(a: &[f64], b: &[f64], n: usize, wanted: &[usize]) -> Option<Vec<f64>> {
+    let l = cholesky(a, n)?;
+    let out: Vec<f64> = wanted
+        .iter()
+        .map(|&k| {
+            let mut e = vec![0.0; n];
+            e[k] = 1.0;
+            let y = forward_substitute(&l, &e);
+            let mut u = vec![0.0; n];
+            for i in (0..n).rev() {
+                u[i] = (y[i] - (i + 1..n).map(|j| l[j * n + i] * u[j]).sum::<f64>()) / l[i * n + i];
+            }
+            (0..n).map(|p| u[p] * (0..n).map(|q| b[p * n + q] * u[q]).sum::<f64>()).sum()
+        })
+        .collect();
+    out.iter().all(|v| v.is_finite()).then_some(out)
+}
+
 /// Minimises ½ xᵀAx − bᵀx over the box by cyclic exact coordinate minimisation with projection. A is
 /// symmetric positive semi-definite, row-major n×n; coordinates with A_ii = 0 are left unchanged.
 pub fn box_qp(a: &[f64], b: &[f64], lo: &[f64], hi: &[f64], x: &mut [f64], sweeps: usize) {
@@ -334,6 +358,17 @@ mod tests {
             assert!((got - want).abs() < 1e-12, "{d:?}");
         }
         assert!(spd_inverse_diagonal(&[1.0, 2.0, 2.0, 4.0], 2, &[0]).is_none());
+        // With the meat equal to the bread the sandwich is the inverse: the same diagonal.
+        let s = sandwich_diagonal(&a, &a, 3, &[0, 1, 2]).unwrap();
+        for (x, y) in s.iter().zip(&d) {
+            assert!((x - y).abs() < 1e-12 * y.abs().max(1.0), "{s:?} vs {d:?}");
+        }
+        // Weighted least squares of one mean: rows x_j = θ + e_j, Var e_j = 1, weights w_j. The estimate
+        // Σw x / Σw has variance Σw² / (Σw)², whatever the weights; A⁻¹ alone (1/Σw) is right only for w = 1.
+        let w = [0.1, 1.0, 4.0];
+        let (sw, sw2): (f64, f64) = (w.iter().sum(), w.iter().map(|v| v * v).sum());
+        let v = sandwich_diagonal(&[sw], &[sw2], 1, &[0]).unwrap()[0];
+        assert!((v - sw2 / (sw * sw)).abs() < 1e-15);
     }
 
     #[test]

@@ -8,11 +8,13 @@
 //! as an unknown — Adam's gradient paths and the Gauss–Newton columns reach an unseen surface through the
 //! light it reflects — and, once the fit is done, weighs each unseen object's estimate against a prior:
 //!
-//! - **the estimate's standard error** per channel, from the information matrix of the fit's data at the
-//!   final parameters ([`standard_errors`]): the Jacobian of a fresh solve draw of pixels with respect to
-//!   every base colour and every light's emission (so that a ceiling's albedo is judged net of what the lamp
-//!   and the walls can trade for it), the residuals' robust scale, and the number of Gauss–Newton steps the
-//!   estimate averages;
+//! - **the estimate's standard error** per channel, from the fit's data at the final parameters
+//!   ([`standard_errors`]): the sandwich variance of a weighted least-squares estimate over a fresh solve draw
+//!   of pixels, from the Jacobian with respect to every base colour and every light's emission (so that a
+//!   ceiling's albedo is judged net of what the lamp and the walls can trade for it), the residuals' robust
+//!   scale per object, and the number of Gauss–Newton steps the estimate averages. The few pixels that see
+//!   an unconstrained object itself are left out: a fitting seen in 5 pixel centres beside a lamp fits
+//!   anything there, and only what it reflects elsewhere counts;
 //! - **the prior**: the area-weighted mean and spread of the base colours of the observed objects that do not
 //!   emit, of the same category when the scan has any ([`UnseenPrior`]), else of all of them — the scan's
 //!   own distribution of surfaces;
@@ -28,7 +30,7 @@
 use super::ObjectDesc;
 use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
-use super::linear::spd_inverse_diagonal;
+use super::linear::sandwich_diagonal;
 use super::pixels::WeightedDraw;
 use crate::streams::key::{PROFILE_JACOBIAN, SECOND_ESTIMATE};
 use tracer::{PixelRef, TracerError};
@@ -183,12 +185,16 @@ pub fn describe(result: [f64; 3], estimate: [f64; 3], se: [f64; 3], weight: [f64
     )
 }
 
-/// Standard errors of the base colours of `objects` in the fit at `x`, per channel: from the information
-/// matrix JᵀWJ over the pixels of `draw` (J = ∂I/∂θ for every base colour that reaches them and the emission
-/// of every light, from the cross products of two independent gradient-path estimates), the residuals' robust scale
-/// (1.4826 · median |photo − render|, which counts both the photos' and the render's noise and what the model
-/// cannot represent), and `averaged` independent draws of this size behind the estimate (the Gauss–Newton
-/// steps it averages). Infinite where the information matrix is singular or the object reaches no pixel.
+/// Standard errors of the base colours of `objects` in the fit at `x`, per channel: the sandwich A⁻¹BA⁻¹ of the
+/// weighted least-squares fit over the pixels of `draw`, with A = JᵀWJ (J = ∂I/∂θ for every base colour that
+/// reaches them and the emission of every light, from the cross products of two independent gradient-path
+/// estimates) and B = JᵀW Σ W J (Σ the rows' residual variances, robust scale per object, [`row_sigmas`]: both
+/// the photos' and the render's noise and what the model cannot represent), divided by the `averaged`
+/// independent draws of this size behind the estimate (the Gauss–Newton steps it averages). The weights are
+/// the draw's sampling weights, not the rows' precisions, so σ²A⁻¹ alone is wrong wherever they differ from 1:
+/// an object seen in a few pixels has all of them in every draw at weight ≈ M/N (a few hundredths), and A⁻¹
+/// overstated its variance by N/M; the sandwich gives the variance of the estimate the solves compute
+/// (docs/optim/design-measurements.md, "Objects seen in a few pixels"). Infinite where the information matrix is singular or the object reaches no pixel.
 pub fn standard_errors(
     ctx: &Ctx<'_>,
     x: &[f64],
@@ -219,35 +225,45 @@ pub fn standard_errors(
             .filter(|&k| (0..m).any(|j| entry(&rows_a, j, k) != 0.0 || entry(&rows_b, j, k) != 0.0))
             .chain((0..k_count).filter(|&k| x[idx(k, EMISSION + c)] > 0.0).map(|k| k_count + k))
             .collect();
-        // The information matrix from the two independent estimates' cross products, ½(AᵀWB + BᵀWA): its
-        // expectation is that of the noise-free Jacobian, where AᵀWA would add each entry's Monte Carlo
-        // variance to the diagonal and claim information that a faintly reached surface (a lamp panel's own
-        // reflection) does not give.
+        // The information matrix (the sandwich's bread) from the two independent estimates' cross products,
+        // ½(AᵀWB + BᵀWA): its expectation is that of the noise-free Jacobian, where AᵀWA would add each entry's
+        // Monte Carlo variance to the diagonal and claim information that a faintly reached surface (a lamp
+        // panel's own reflection) does not give.
         let n_all = vars.len();
         let mut gram = vec![0.0; n_all * n_all];
+        let mut meat = vec![0.0; n_all * n_all];
         let (mut ra, mut rb) = (vec![0.0; n_all], vec![0.0; n_all]);
+        let row_sigma = row_sigmas(draw, &values, c);
         for j in 0..m {
+            // The pixels that see an unconstrained object itself (a few, often at its silhouette or beside a
+            // lamp) are not information about its base colour: it is judged by what it reflects elsewhere.
+            if draw.samples[j].object.is_some_and(|o| objects.contains(&(o as usize))) {
+                continue;
+            }
             for (i, &v) in vars.iter().enumerate() {
                 ra[i] = entry(&rows_a, j, v);
                 rb[i] = entry(&rows_b, j, v);
             }
             let nz: Vec<usize> = (0..n_all).filter(|&i| ra[i] != 0.0 || rb[i] != 0.0).collect();
+            // The meat Σ w²σ² J Jᵀ from the same cross products: each estimate's own products would add the
+            // Jacobian's Monte Carlo variance, which for a surface reached only through interreflection (a few
+            // gradient paths per pixel) exceeds its mean square and made a well-determined ceiling's standard
+            // error 0.8–27 instead of 0.02.
+            let wn = weights[j] * weights[j] * row_sigma[j] * row_sigma[j];
             for &p in &nz {
                 for &q in &nz {
                     gram[p * n_all + q] += weights[j] * 0.5 * (ra[p] * rb[q] + rb[p] * ra[q]) / m as f64;
+                    meat[p * n_all + q] += wn * 0.5 * (ra[p] * rb[q] + rb[p] * ra[q]) / m as f64;
                 }
             }
         }
         // A variable whose cross-product diagonal is not positive carries no information beyond its noise.
         let keep: Vec<usize> = (0..n_all).filter(|&i| gram[i * n_all + i] > 0.0).collect();
         let n = keep.len();
-        let mut g: Vec<f64> =
-            keep.iter().flat_map(|&p| keep.iter().map(move |&q| (p, q))).map(|(p, q)| gram[p * n_all + q]).collect();
-        let mut abs_res: Vec<f64> =
-            (0..m).map(|j| (f64::from(draw.samples[j].target[c]) - f64::from(values[j][c])).abs()).collect();
-        abs_res.sort_by(f64::total_cmp);
-        // 1.4826 · median |r| is the standard deviation of Gaussian residuals, robust to outliers.
-        let sigma = 1.4826 * abs_res[m / 2];
+        let sub = |mat: &[f64]| -> Vec<f64> {
+            keep.iter().flat_map(|&p| keep.iter().map(move |&q| (p, q))).map(|(p, q)| mat[p * n_all + q]).collect()
+        };
+        let (mut g, meat) = (sub(&gram), sub(&meat));
         let wanted: Vec<(usize, usize)> = objects
             .iter()
             .enumerate()
@@ -261,7 +277,7 @@ pub fn standard_errors(
         let mut ridge = 0.0;
         let mut diag = None;
         for step in 0..6 {
-            diag = spd_inverse_diagonal(&g, n, &idxs);
+            diag = sandwich_diagonal(&g, &meat, n, &idxs);
             if diag.is_some() {
                 break;
             }
@@ -273,12 +289,44 @@ pub fn standard_errors(
         }
         if let Some(diag) = diag {
             for (&(o, _), d) in wanted.iter().zip(diag) {
-                out[o][c] = sigma * (d / (m * averaged.max(1)) as f64).sqrt();
+                // The cross-product meat is unbiased but not positive definite: a variance estimate that is not
+                // positive is noise, and the object is left to its prior (infinite standard error).
+                out[o][c] = if d > 0.0 { (d / (m * averaged.max(1)) as f64).sqrt() } else { f64::INFINITY };
             }
         }
     }
     Ok(out)
 }
+
+/// Per row of the draw, the standard deviation of its residual in channel `c`: the robust scale (1.4826 ·
+/// median |photo − render|, the standard deviation of Gaussian residuals, robust to outliers) of the rows of the
+/// same object, as the data term's Huber corner is per object; never below the scale of all rows, so that a
+/// handful of rows that happen to agree claims no more precision than the scan's typical pixel; the scale of all
+/// rows where the object has fewer than [`MIN_GROUP_ROWS`].
+fn row_sigmas(draw: &WeightedDraw, values: &[glam::Vec3], c: usize) -> Vec<f64> {
+    let m = draw.samples.len();
+    let abs_res = |j: usize| (f64::from(draw.samples[j].target[c]) - f64::from(values[j][c])).abs();
+    let robust = |mut r: Vec<f64>| {
+        r.sort_by(f64::total_cmp);
+        1.4826 * r[r.len() / 2]
+    };
+    let all = robust((0..m).map(abs_res).collect());
+    let mut groups: std::collections::HashMap<Option<u32>, Vec<usize>> = std::collections::HashMap::new();
+    for j in 0..m {
+        groups.entry(draw.samples[j].object).or_default().push(j);
+    }
+    let mut out = vec![all; m];
+    for rows in groups.values().filter(|r| r.len() >= MIN_GROUP_ROWS) {
+        let own = robust(rows.iter().map(|&j| abs_res(j)).collect()).max(all);
+        for &j in rows {
+            out[j] = own;
+        }
+    }
+    out
+}
+
+/// Rows an object needs in a draw for its own residual scale: a median of fewer says little about the spread.
+const MIN_GROUP_ROWS: usize = 3;
 
 #[cfg(test)]
 mod tests {
