@@ -89,6 +89,59 @@ pub fn smooth_solve(rho: &mut [Vec3], ratio: &[Vec3], weight: &[f64], nbrs: &[Ve
     }
 }
 
+/// The smallest fraction of a ratio step an object takes after its steps alternate in sign.
+const MIN_RELAX: f64 = 1.0 / 16.0;
+
+/// Under-relaxes the ratio step per object where it oscillates. The ratio step ρ·T/R divides by the render
+/// per unit of the triangle's *own* albedo, but when all triangles of an object move together the object's
+/// light on itself moves with them: on a white hall (albedo 0.9, lit mostly by its own interreflections) the
+/// step overshoots by more than its size, and the object's value alternated with growing amplitude (Modern
+/// Hall's 741 m² wall: 0.94, 0.88, 0.97, 0.87, 1.02 over five steps; docs/optim/design-measurements.md, "The
+/// ratio step on bright interreflecting objects"). Per object and channel, the pixel-weighted mean change of
+/// its free triangles is compared with the previous step's: a reversal halves the fraction of the step taken
+/// (down to [`MIN_RELAX`]), a step in the same direction raises it by half (up to the whole step), as Rprop
+/// does. The fixed point (T = R on every triangle) is unchanged; an object whose steps do not reverse takes
+/// them whole.
+fn relax_objects(
+    rho: &mut [Vec3],
+    old: &[Vec3],
+    count: &[f64],
+    free: &[bool],
+    face_object: &[u32],
+    relax: &mut [DVec3],
+    last_step: &mut [DVec3],
+) {
+    let mut change = vec![(DVec3::ZERO, 0.0f64); relax.len()];
+    for t in 0..rho.len() {
+        if free[t] && count[t] > 0.0 {
+            let c = &mut change[face_object[t] as usize];
+            c.0 += (rho[t] - old[t]).as_dvec3() * count[t];
+            c.1 += count[t];
+        }
+    }
+    for (o, (sum, n)) in change.iter().enumerate() {
+        if *n <= 0.0 {
+            continue;
+        }
+        let step = *sum / *n;
+        for c in 0..3 {
+            let product = step[c] * last_step[o][c];
+            if product < 0.0 {
+                relax[o][c] = (relax[o][c] * 0.5).max(MIN_RELAX);
+            } else if product > 0.0 {
+                relax[o][c] = (relax[o][c] * 1.5).min(1.0);
+            }
+        }
+        last_step[o] = step * relax[o];
+    }
+    for t in 0..rho.len() {
+        if free[t] {
+            let w = relax[face_object[t] as usize].as_vec3();
+            rho[t] = (old[t] + (rho[t] - old[t]) * w).clamp(Vec3::ZERO, Vec3::ONE);
+        }
+    }
+}
+
 /// Shrink every triangle's estimate towards its object's pooled value ([`shrink_to_object`]) before the
 /// smoothness solve. Measured in `docs/optim/design-measurements.md`.
 const SHRINK: bool = true;
@@ -276,6 +329,10 @@ pub fn fit_pass(
     let mut residual = vec![Vec3::ZERO; samples.len()];
     let mut work = tracer::TraceStats::default();
     let steps = cfg.fit_steps.max(1);
+    // Per object and channel: the fraction of the ratio step taken, and the object's mean change last step.
+    let objects = state.emission.len();
+    let mut relax = vec![DVec3::ONE; objects];
+    let mut last_step = vec![DVec3::ZERO; objects];
     for k in pass * steps..(pass + 1) * steps {
         progress.set_message(&format!(
             "round {round}: ratio step {}/{steps} of pass {pass}, {} triangles, {} pixels at {} paths",
@@ -334,6 +391,7 @@ pub fn fit_pass(
                 ratio
             };
             smooth_solve(&mut rho, &ratio, &count, &nbrs, &free, cfg.smoothness);
+            relax_objects(&mut rho, &old, &count, &free, &state.face_object, &mut relax, &mut last_step);
             for (m, r) in state.materials.iter_mut().zip(&rho) {
                 m.base_color = *r;
             }
@@ -361,6 +419,31 @@ pub fn fit_pass(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_object_whose_steps_reverse_takes_a_smaller_fraction_of_them() {
+        // Two triangles of object 0 proposing +0.1 after a step of −0.1: half the step is taken; object 1's
+        // steps keep their direction and are taken whole.
+        let old = vec![Vec3::splat(0.5); 4];
+        let mut rho = vec![Vec3::splat(0.6), Vec3::splat(0.6), Vec3::splat(0.55), Vec3::splat(0.55)];
+        let mut relax = vec![DVec3::ONE; 2];
+        let mut last = vec![DVec3::splat(-0.1), DVec3::splat(0.02)];
+        relax_objects(&mut rho, &old, &[10.0; 4], &[true; 4], &[0, 0, 1, 1], &mut relax, &mut last);
+        assert!((rho[0].x - 0.55).abs() < 1e-6 && (rho[1].x - 0.55).abs() < 1e-6, "{rho:?}");
+        assert!((rho[2].x - 0.55).abs() < 1e-6, "{rho:?}");
+        assert_eq!(relax[0], DVec3::splat(0.5));
+        assert!((last[0].x - 0.05).abs() < 1e-6, "{last:?}");
+        // The damped map of an overshooting iteration converges: x ← x + ω·(f(x) − x) with f(x) = 0.9 − 1.5·(x − 0.9),
+        // whose undamped iterates diverge from 0.85.
+        let mut x = vec![Vec3::splat(0.85)];
+        let (mut relax, mut last) = (vec![DVec3::ONE], vec![DVec3::ZERO]);
+        for _ in 0..40 {
+            let old = x.clone();
+            x[0] = Vec3::splat(0.9 - 1.5 * (old[0].x - 0.9));
+            relax_objects(&mut x, &old, &[1.0], &[true], &[0], &mut relax, &mut last);
+        }
+        assert!((x[0].x - 0.9).abs() < 1e-3, "{x:?}");
+    }
 
     #[test]
     fn smoothing_fills_an_unobserved_triangle_with_its_neighbours_mean_and_keeps_isolated_ones() {
