@@ -23,21 +23,22 @@ def example_binary(crate: str, name: str) -> Path:
 
 
 @functools.cache
+def workspace_binary(crate: str, name: str) -> Path:
+    """Path of the debug binary `name` of `crate`, built or refreshed once per session."""
+    subprocess.run(["cargo", "build", "--quiet", "-p", crate, "--bin", name], cwd=ROOT, check=True)
+    exe = TARGET / "debug" / name
+    assert exe.exists(), exe
+    return exe
+
+
 def pipeline_binary() -> Path:
-    """Path of the debug `pipeline` binary, built or refreshed once per session."""
-    subprocess.run(["cargo", "build", "--quiet", "-p", "pipeline", "--bin", "pipeline"], cwd=ROOT, check=True)
-    exe = TARGET / "debug" / "pipeline"
-    assert exe.exists(), exe
-    return exe
+    """Path of the debug `pipeline` binary."""
+    return workspace_binary("pipeline", "pipeline")
 
 
-@functools.cache
 def lab_binary() -> Path:
-    """Path of the debug `lab` binary (synthetic scans, benchmarks), built or refreshed once per session."""
-    subprocess.run(["cargo", "build", "--quiet", "-p", "lab", "--bin", "lab"], cwd=ROOT, check=True)
-    exe = TARGET / "debug" / "lab"
-    assert exe.exists(), exe
-    return exe
+    """Path of the debug `lab` binary (synthetic scans, benchmarks)."""
+    return workspace_binary("lab", "lab")
 
 
 def read_exr_channels(path) -> dict:

@@ -83,35 +83,24 @@ fn forward_substitute(l: &[f64], b: &[f64]) -> Vec<f64> {
     y
 }
 
+/// x = L⁻ᵀ y for the lower triangular factor `l` (row-major n×n).
+fn back_substitute(l: &[f64], y: &[f64]) -> Vec<f64> {
+    let n = y.len();
+    let mut x = vec![0.0; n];
+    for i in (0..n).rev() {
+        x[i] = (y[i] - (i + 1..n).map(|k| l[k * n + i] * x[k]).sum::<f64>()) / l[i * n + i];
+    }
+    x
+}
+
 /// Solves `a x = b` for a symmetric positive definite `a` (row-major n×n) by Cholesky. `None` when `a` is
 /// singular to double precision ([`cholesky`]), and the caller falls back to a smaller model.
 #[must_use]
 pub fn solve_spd(a: &[f64], b: &[f64]) -> Option<Vec<f64>> {
     let n = b.len();
     let l = cholesky(a, n)?;
-    let y = forward_substitute(&l, b);
-    let mut x = vec![0.0; n];
-    for i in (0..n).rev() {
-        x[i] = (y[i] - (i + 1..n).map(|k| l[k * n + i] * x[k]).sum::<f64>()) / l[i * n + i];
-    }
+    let x = back_substitute(&l, &forward_substitute(&l, b));
     x.iter().all(|v| v.is_finite()).then_some(x)
-}
-
-/// The diagonal entries `wanted` of A⁻¹ for a symmetric positive definite `a` (row-major n×n): (A⁻¹)_kk =
-/// ‖L⁻¹ e_k‖² with one factorisation. `None` when `a` is singular to double precision. The variances of
-/// a few parameters of a least-squares fit, from its information matrix.
-#[must_use]
-pub fn spd_inverse_diagonal(a: &[f64], n: usize, wanted: &[usize]) -> Option<Vec<f64>> {
-    let l = cholesky(a, n)?;
-    let out: Vec<f64> = wanted
-        .iter()
-        .map(|&k| {
-            let mut e = vec![0.0; n];
-            e[k] = 1.0;
-            forward_substitute(&l, &e).iter().map(|v| v * v).sum()
-        })
-        .collect();
-    out.iter().all(|v| v.is_finite()).then_some(out)
 }
 
 /// The diagonal entries `wanted` of the sandwich A⁻¹BA⁻¹ for a symmetric positive definite `a` (the bread) and
@@ -127,11 +116,7 @@ pub fn sandwich_diagonal(a: &[f64], b: &[f64], n: usize, wanted: &[usize]) -> Op
         .map(|&k| {
             let mut e = vec![0.0; n];
             e[k] = 1.0;
-            let y = forward_substitute(&l, &e);
-            let mut u = vec![0.0; n];
-            for i in (0..n).rev() {
-                u[i] = (y[i] - (i + 1..n).map(|j| l[j * n + i] * u[j]).sum::<f64>()) / l[i * n + i];
-            }
+            let u = back_substitute(&l, &forward_substitute(&l, &e));
             (0..n).map(|p| u[p] * (0..n).map(|q| b[p * n + q] * u[q]).sum::<f64>()).sum()
         })
         .collect();
@@ -350,19 +335,15 @@ mod tests {
     }
 
     #[test]
-    fn the_inverse_diagonal_matches_the_explicit_inverse() {
-        // A = [[4, 2, 0], [2, 3, 1], [0, 1, 2]]: det 12, A⁻¹ diagonal (5, 8, 8) / 12.
+    fn the_sandwich_diagonal_matches_its_definition() {
+        // A = [[4, 2, 0], [2, 3, 1], [0, 1, 2]]: det 12, A⁻¹ diagonal (5, 8, 8) / 12. With the meat equal to
+        // the bread the sandwich A⁻¹AA⁻¹ is A⁻¹.
         let a = [4.0, 2.0, 0.0, 2.0, 3.0, 1.0, 0.0, 1.0, 2.0];
-        let d = spd_inverse_diagonal(&a, 3, &[0, 1, 2]).unwrap();
+        let d = sandwich_diagonal(&a, &a, 3, &[0, 1, 2]).unwrap();
         for (got, want) in d.iter().zip([5.0 / 12.0, 8.0 / 12.0, 8.0 / 12.0]) {
             assert!((got - want).abs() < 1e-12, "{d:?}");
         }
-        assert!(spd_inverse_diagonal(&[1.0, 2.0, 2.0, 4.0], 2, &[0]).is_none());
-        // With the meat equal to the bread the sandwich is the inverse: the same diagonal.
-        let s = sandwich_diagonal(&a, &a, 3, &[0, 1, 2]).unwrap();
-        for (x, y) in s.iter().zip(&d) {
-            assert!((x - y).abs() < 1e-12 * y.abs().max(1.0), "{s:?} vs {d:?}");
-        }
+        assert!(sandwich_diagonal(&[1.0, 2.0, 2.0, 4.0], &[1.0, 0.0, 0.0, 1.0], 2, &[0]).is_none());
         // Weighted least squares of one mean: rows x_j = θ + e_j, Var e_j = 1, weights w_j. The estimate
         // Σw x / Σw has variance Σw² / (Σw)², whatever the weights; A⁻¹ alone (1/Σw) is right only for w = 1.
         let w = [0.1, 1.0, 4.0];
