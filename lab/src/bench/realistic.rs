@@ -81,7 +81,7 @@ pub fn run(opts: &RealisticOptions, mut on_event: impl FnMut(&str)) -> Result<()
                     .into(),
             });
         }
-        scans.push((scene.clone(), absolute(&scan)?));
+        scans.push((scene.clone(), canonical(&scan)?));
     }
     if opts.presets.is_empty() || scans.is_empty() {
         return Err(BenchError::Other("nothing to run: no scene or no preset".into()));
@@ -94,7 +94,7 @@ pub fn run(opts: &RealisticOptions, mut on_event: impl FnMut(&str)) -> Result<()
     } else {
         opts.python.clone()
     };
-    let opts = &RealisticOptions { pipeline: absolute(&opts.pipeline)?, python, ..opts.clone() };
+    let opts = &RealisticOptions { pipeline: canonical(&opts.pipeline)?, python, ..opts.clone() };
     let total = scans.len() * opts.presets.len();
     let started = std::time::Instant::now();
     let mut rows = Vec::new();
@@ -128,7 +128,7 @@ fn eta(elapsed_s: f64, done: usize, total: usize) -> String {
     format!(", about {}h{:02}m left", minutes / 60, minutes % 60)
 }
 
-fn absolute(p: &Path) -> Result<PathBuf, BenchError> {
+fn canonical(p: &Path) -> Result<PathBuf, BenchError> {
     std::fs::canonicalize(p).map_err(|e| BenchError::Io { path: p.to_path_buf(), message: e.to_string() })
 }
 
@@ -152,7 +152,7 @@ fn run_one(
 ) -> Result<Vec<Row>, BenchError> {
     let io = |path: &Path, e: std::io::Error| BenchError::Io { path: path.to_path_buf(), message: e.to_string() };
     std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
-    let dir = absolute(dir)?;
+    let dir = canonical(dir)?;
     let (run_dir, cost_file, scores) = (dir.join("run"), dir.join("cost.json"), dir.join("scores.csv"));
     let config = dir.join("config.toml");
     let kept = !opts.fresh && cost_file.is_file() && run_dir.join("materials.json").is_file();
@@ -185,27 +185,15 @@ fn run_one(
 
 /// `pipeline run CONFIG` under `/usr/bin/time -v` when it exists; the per-stage costs from the run log.
 fn run_pipeline(pipeline: &Path, config: &Path, run_dir: &Path, set: &[String]) -> Result<ProcessRun, BenchError> {
-    let time_v = Path::new("/usr/bin/time");
-    let mut cmd = if time_v.is_file() {
-        let mut c = Command::new(time_v);
-        c.arg("-v").arg(pipeline);
-        c
-    } else {
-        Command::new(pipeline)
-    };
-    cmd.arg("run").arg(config);
+    let mut args: Vec<std::ffi::OsString> = vec!["run".into(), config.into()];
     for s in set {
-        cmd.arg("--set").arg(s);
+        args.push("--set".into());
+        args.push(s.into());
     }
-    let load_avg_1m = workflow::process_stats::load_average_1m().unwrap_or(f64::NAN);
-    let t0 = std::time::Instant::now();
-    let out = cmd
-        .output()
-        .map_err(|e| BenchError::Io { path: pipeline.to_path_buf(), message: format!("cannot run: {e}") })?;
-    let wall_s = t0.elapsed().as_secs_f64();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    if !out.status.success() {
+    let run = super::scale::run_timed(pipeline, &args)?;
+    if !run.output.status.success() {
         // The pipeline's own one-line error, not `/usr/bin/time`'s statistics after it.
+        let stderr = String::from_utf8_lossy(&run.output.stderr);
         let why = stderr.lines().rev().find(|l| l.starts_with("error")).unwrap_or("no error line");
         return Err(BenchError::Io { path: config.to_path_buf(), message: format!("pipeline run failed: {why}") });
     }
@@ -218,9 +206,9 @@ fn run_pipeline(pipeline: &Path, config: &Path, run_dir: &Path, set: &[String]) 
     }
     Ok(ProcessRun {
         costs,
-        wall_s,
-        time_v_peak_rss_mb: super::scale::time_v_peak_rss_mb(&stderr).unwrap_or(f64::NAN),
-        load_avg_1m,
+        wall_s: run.wall_s,
+        time_v_peak_rss_mb: run.time_v_peak_rss_mb,
+        load_avg_1m: run.load_avg_1m,
     })
 }
 
@@ -395,10 +383,26 @@ pub fn csv(rows: &[Row]) -> String {
     s
 }
 
-fn value(rows: &[Row], scene: &str, preset: &str, metric: &str, subset: &str) -> Option<f64> {
+/// The value of `metric` for (scene, preset), in `subset` when one is named, else the first row of the metric.
+fn lookup(rows: &[Row], scene: &str, preset: &str, metric: &str, subset: Option<&str>) -> Option<f64> {
     rows.iter()
-        .find(|r| r.scene == scene && r.preset == preset && r.metric == metric && r.subset == subset)
+        .find(|r| r.scene == scene && r.preset == preset && r.metric == metric && subset.is_none_or(|s| r.subset == s))
         .map(|r| r.value)
+}
+
+fn value(rows: &[Row], scene: &str, preset: &str, metric: &str, subset: &str) -> Option<f64> {
+    lookup(rows, scene, preset, metric, Some(subset))
+}
+
+/// The scenes in the order they ran.
+fn scenes(rows: &[Row]) -> Vec<String> {
+    let mut scenes: Vec<String> = Vec::new();
+    for (scene, _) in pairs(rows) {
+        if !scenes.contains(&scene) {
+            scenes.push(scene);
+        }
+    }
+    scenes
 }
 
 /// The (scene, preset) pairs in the order they ran.
@@ -466,8 +470,7 @@ fn summary(rows: &[Row], set: &[String], render_spp: u32) -> String {
     let f = |x: Option<f64>, d: usize| x.filter(|v| v.is_finite()).map_or("–".to_owned(), |v| format!("{v:.d$}"));
     for (scene, preset) in pairs(rows) {
         let v = |m: &str, sub: &str| value(rows, &scene, &preset, m, sub);
-        let psnr =
-            rows.iter().find(|r| r.scene == scene && r.preset == preset && r.metric == "albedo_psnr").map(|r| r.value);
+        let psnr = lookup(rows, &scene, &preset, "albedo_psnr", None);
         let _ = writeln!(
             s,
             "| {scene} | {preset} | {} s | {} s | {} MB | {} dB | {} / {} / {} / {} | {} / {} | {} / {} | {} / {} dB |",
@@ -487,14 +490,8 @@ fn summary(rows: &[Row], set: &[String], render_spp: u32) -> String {
             f(v("novel_psnr", "truth-materials"), 2),
         );
     }
-    let mut scenes: Vec<String> = Vec::new();
-    for (scene, _) in pairs(rows) {
-        if !scenes.contains(&scene) {
-            scenes.push(scene);
-        }
-    }
     let _ = writeln!(s, "\nTargets (default config):\n");
-    for scene in &scenes {
+    for scene in &scenes(rows) {
         let _ = writeln!(s, "- {scene}: {}", targets(scene));
     }
     let _ = writeln!(
@@ -507,28 +504,14 @@ fn summary(rows: &[Row], set: &[String], render_spp: u32) -> String {
 
 fn plot(rows: &[Row]) -> String {
     let mut panels = Vec::new();
-    let mut scenes: Vec<String> = Vec::new();
-    for (scene, _) in pairs(rows) {
-        if !scenes.contains(&scene) {
-            scenes.push(scene);
-        }
-    }
-    for scene in &scenes {
+    for scene in &scenes(rows) {
         let presets: Vec<String> = pairs(rows).into_iter().filter(|(s, _)| s == scene).map(|(_, p)| p).collect();
         let series = |name: &str, color: &str, metric: &str, subset: Option<&str>| {
             let points = presets
                 .iter()
                 .filter_map(|p| {
                     let cpu = value(rows, scene, p, "cpu_s", "total")?;
-                    let y = rows
-                        .iter()
-                        .find(|r| {
-                            r.scene == *scene
-                                && r.preset == *p
-                                && r.metric == metric
-                                && subset.is_none_or(|s| r.subset == s)
-                        })?
-                        .value;
+                    let y = lookup(rows, scene, p, metric, subset)?;
                     (cpu.is_finite() && y.is_finite()).then_some((cpu, y))
                 })
                 .collect();

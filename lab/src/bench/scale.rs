@@ -209,7 +209,7 @@ struct Measured {
 }
 
 /// `/usr/bin/time -v`'s "Maximum resident set size (kbytes)", in MB.
-pub(crate) fn time_v_peak_rss_mb(stderr: &str) -> Option<f64> {
+fn time_v_peak_rss_mb(stderr: &str) -> Option<f64> {
     let line = stderr.lines().find(|l| l.contains("Maximum resident set size (kbytes)"))?;
     let kb: f64 = line.rsplit(':').next()?.trim().parse().ok()?;
     Some(kb * 1024.0 / 1e6)
@@ -228,38 +228,60 @@ pub(crate) struct ProcessRun {
     pub load_avg_1m: f64,
 }
 
+/// A process run under `/usr/bin/time -v` (when it exists): its output, its wall time, the 1-minute load
+/// average when it started, and `time -v`'s peak RSS (NaN without it).
+pub(crate) struct Timed {
+    pub output: std::process::Output,
+    pub wall_s: f64,
+    pub load_avg_1m: f64,
+    pub time_v_peak_rss_mb: f64,
+}
+
+/// Runs `exe args…` under `/usr/bin/time -v` when it exists.
+pub(crate) fn run_timed(exe: &Path, args: &[std::ffi::OsString]) -> Result<Timed, BenchError> {
+    let time_v = Path::new("/usr/bin/time");
+    let mut cmd = if time_v.is_file() {
+        let mut c = Command::new(time_v);
+        c.arg("-v").arg(exe);
+        c
+    } else {
+        Command::new(exe)
+    };
+    let load_avg_1m = workflow::process_stats::load_average_1m().unwrap_or(f64::NAN);
+    let t0 = Instant::now();
+    let output = cmd
+        .args(args)
+        .output()
+        .map_err(|e| BenchError::Io { path: exe.to_path_buf(), message: format!("cannot run: {e}") })?;
+    let wall_s = t0.elapsed().as_secs_f64();
+    let time_v_peak_rss_mb = time_v_peak_rss_mb(&String::from_utf8_lossy(&output.stderr)).unwrap_or(f64::NAN);
+    Ok(Timed { output, wall_s, load_avg_1m, time_v_peak_rss_mb })
+}
+
 /// Runs `lab bench scale-point CONFIG STATS` (this binary) under `/usr/bin/time -v` when it exists and reads
 /// the per-stage costs it wrote to `stats`.
 pub(crate) fn run_in_process(config: &Path, stats: &Path, set: &[String]) -> Result<ProcessRun, BenchError> {
     let exe = std::env::current_exe().map_err(|e| BenchError::Io { path: "lab".into(), message: e.to_string() })?;
-    let mut args: Vec<String> = vec!["bench".into(), "scale-point".into()];
-    args.push(config.to_string_lossy().into_owned());
-    args.push(stats.to_string_lossy().into_owned());
+    let mut args: Vec<std::ffi::OsString> = vec!["bench".into(), "scale-point".into(), config.into(), stats.into()];
     for s in set {
         args.push("--set".into());
-        args.push(s.clone());
+        args.push(s.into());
     }
-    let time_v = Path::new("/usr/bin/time");
-    let mut cmd = if time_v.is_file() {
-        let mut c = Command::new(time_v);
-        c.arg("-v").arg(&exe);
-        c
-    } else {
-        Command::new(&exe)
-    };
-    let load_avg_1m = workflow::process_stats::load_average_1m().unwrap_or(f64::NAN);
-    let t0 = Instant::now();
-    let run = cmd.args(&args).output().map_err(|e| BenchError::Io { path: exe.clone(), message: e.to_string() })?;
-    let wall_s = t0.elapsed().as_secs_f64();
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    if !run.status.success() {
+    let run = run_timed(&exe, &args)?;
+    if !run.output.status.success() {
+        let stderr = String::from_utf8_lossy(&run.output.stderr);
         return Err(BenchError::Io { path: config.into(), message: format!("point failed: {}", stderr.trim()) });
     }
     let costs: Vec<(String, StageCost)> = serde_json::from_slice(
         &std::fs::read(stats).map_err(|e| BenchError::Io { path: stats.into(), message: e.to_string() })?,
     )
     .map_err(|e| BenchError::Io { path: stats.into(), message: e.to_string() })?;
-    Ok(ProcessRun { costs, wall_s, time_v_peak_rss_mb: time_v_peak_rss_mb(&stderr).unwrap_or(f64::NAN), load_avg_1m })
+    Ok(ProcessRun {
+        costs,
+        wall_s: run.wall_s,
+        time_v_peak_rss_mb: run.time_v_peak_rss_mb,
+        load_avg_1m: run.load_avg_1m,
+    })
 }
 
 fn measure(p: Point, opts: &ScaleOptions, work: &Path) -> Result<Measured, BenchError> {
