@@ -254,6 +254,34 @@ def test_scorer_samples_the_export_atlas_through_the_obj_uvs(tiny, tmp_path):
     assert rows[("albedo_psnr", "export per-triangle")] < rows[("albedo_psnr", "export")] - 5.0
 
 
+def test_scorer_splits_albedo_psnr_by_true_kind(tiny, tmp_path):
+    """The per-kind albedo PSNR rows pool only the pixels of objects of that true kind: with one object marked
+    metal in the truth, making only its export colour wrong leaves the diffuse subset unchanged and lowers the
+    metal one, and the subsets' pixels add up to all of them."""
+    scan_dir = tmp_path / "scan"
+    shutil.copytree(tiny, scan_dir)
+    gt = truth(scan_dir)
+    metal = next(o for o in gt["objects"] if o["seen"] and not o["emitting"])
+    metal["kind"] = "metal"
+    (scan_dir / "ground_truth.json").write_text(json.dumps(gt))
+
+    def albedo_rows(name, wrong):
+        run = tmp_path / name
+        by_id = {o["id"]: o for o in fake_run(scan_dir, run)["objects"]}
+        write_export_mesh(scan_dir, run, lambda segment: (1.0, 0.0, 1.0) if wrong and segment == metal["id"]
+                          else by_id[segment]["base_color"])
+        rows = score.score(scan_dir, run, renders=tmp_path / "none", pipeline=None, log=lambda *_: None)
+        return {r["subset"]: (r["value"], r["count"]) for r in rows if r["metric"] == "albedo_psnr"}
+
+    right, wrong = albedo_rows("right", False), albedo_rows("wrong", True)
+    assert wrong["export diffuse"] == right["export diffuse"]
+    assert wrong["export metal"][0] < right["export metal"][0] - 3.0
+    assert wrong["export"][0] < right["export"][0]
+    assert wrong["export glossy"][1] == 0 and math.isnan(wrong["export glossy"][0])
+    assert wrong["export diffuse"][1] + wrong["export metal"][1] == wrong["export"][1]
+    assert wrong["export metal"][1] > 0 and wrong["export diffuse"][1] > 0
+
+
 def test_scores_are_written_as_csv_and_markdown(tiny, tmp_path):
     fake_run(tiny, tmp_path / "run")
     rows = score.score(tiny, tmp_path / "run", renders=tmp_path / "none", pipeline=None, log=lambda *_: None)

@@ -457,13 +457,14 @@ fn summary(rows: &[Row], set: &[String], render_spp: u32) -> String {
         "Measured by `lab bench realistic` ({cores} logical cores; 1-minute load average {lo:.1}–{hi:.1} when the \
          runs started). Each run: the whole pipeline on the scan with `quality` = the preset and `object.seed = 0`{}; \
          scored by `scripts/corpus score` with novel views rendered at {render_spp} paths per pixel. Data: \
-         `realistic.csv`; plot: `realistic.svg`. Albedo PSNR is per pixel on the held-out views (export atlas); \
+         `realistic.csv`; plot: `realistic.svg`. Albedo PSNR is per pixel on the held-out views (export atlas), over all \
+         non-emitting surfaces and over those whose true material is diffuse (the subset the targets name); \
          emission error is the mean over the true lights of ‖Δe‖₁/‖e‖₁ (a missed light counts 1).\n",
         if set.is_empty() { String::new() } else { format!(", overrides `{}`", set.join("`, `")) }
     );
     let _ = writeln!(
         s,
-        "| scene | preset | wall | CPU | peak RSS | albedo PSNR | albedo L1 diffuse / glossy / metal / all | emitter IoU \
+        "| scene | preset | wall | CPU | peak RSS | albedo PSNR all / diffuse | albedo L1 diffuse / glossy / metal / all | emitter IoU \
          (object stage / export) | emission error (object / export) | novel PSNR run / truth materials |"
     );
     let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---|---|---|---|");
@@ -471,13 +472,21 @@ fn summary(rows: &[Row], set: &[String], render_spp: u32) -> String {
     for (scene, preset) in pairs(rows) {
         let v = |m: &str, sub: &str| value(rows, &scene, &preset, m, sub);
         let psnr = lookup(rows, &scene, &preset, "albedo_psnr", None);
+        // The scorer's per-kind subset (`export diffuse`, or `per-object diffuse` without an export).
+        let diffuse = rows
+            .iter()
+            .find(|r| {
+                r.scene == scene && r.preset == preset && r.metric == "albedo_psnr" && r.subset.ends_with(" diffuse")
+            })
+            .map(|r| r.value);
         let _ = writeln!(
             s,
-            "| {scene} | {preset} | {} s | {} s | {} MB | {} dB | {} / {} / {} / {} | {} / {} | {} / {} | {} / {} dB |",
+            "| {scene} | {preset} | {} s | {} s | {} MB | {} / {} dB | {} / {} / {} / {} | {} / {} | {} / {} | {} / {} dB |",
             f(v("wall_s", "total"), 0),
             f(v("cpu_s", "total"), 0),
             f(v("time_v_peak_rss_mb", "total").or(v("peak_rss_mb", "total")), 0),
             f(psnr, 2),
+            f(diffuse, 2),
             f(v("albedo_l1", "diffuse"), 3),
             f(v("albedo_l1", "glossy"), 3),
             f(v("albedo_l1", "metal"), 3),
@@ -525,6 +534,7 @@ fn plot(rows: &[Row]) -> String {
             log_y: false,
             series: vec![
                 series("albedo PSNR (held-out views)", svg::PALETTE[0], "albedo_psnr", None),
+                series("albedo PSNR, diffuse surfaces", svg::PALETTE[4], "albedo_psnr", Some("export diffuse")),
                 series("novel-view PSNR", svg::PALETTE[1], "novel_psnr", Some("run")),
             ],
         });

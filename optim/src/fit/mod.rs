@@ -20,7 +20,9 @@
 //!    data term as 1; the parameters returned are averaged over the second half of the steps).
 //! 4. **Model selection** ([`select`]): each object starts diffuse with no emission; a specular lobe is tried
 //!    per object — roughness by a 1-D search on the profile loss with base colour and specular solved for each
-//!    roughness ([`roughness`]), on half of the object's training pixels, common random numbers — and kept only
+//!    roughness ([`roughness`]), on half of the object's training pixels, common random numbers; when the
+//!    dielectric's specular strength is at its bound, also the metal family and metallic between the two
+//!    ([`roughness::search_lobe`]) — and kept only
 //!    when it lowers the residual on the other half plus the held-out pixels significantly (paired t > 3 and a
 //!    gain > 0.5 % of the mean radiance); with lobes kept, the emission is re-solved (or, with
 //!    `specular_trial_steps` > 0, Gauss–Newton steps re-fit emission and base colour). An emission term is kept

@@ -15,7 +15,7 @@
 //! Jacobian is noisy enough that the steps wander inside the trust region.
 
 use super::jacobian::{self, Ctx};
-use super::layout::{self, BASE_COLOR, ROUGHNESS, SPECULAR, idx};
+use super::layout::{self, BASE_COLOR, METALLIC, ROUGHNESS, SPECULAR, idx};
 use super::linear::{self, DataLoss, Problem};
 use super::pixels::Sample;
 use crate::streams::key;
@@ -33,6 +33,10 @@ pub const GOLDEN_STEPS: usize = 6;
 /// diffuse wall's best lobe is weak, its grid spread measured at 0.1–0.3 %; the glossy fixture's floor and
 /// box spread 5–20 %), and the lobe, if any, is judged at the best grid point. Halves the search's cost.
 pub const FLAT_PROFILE: f64 = 0.005;
+/// A dielectric's specular strength at or above this is at its bound (the solve's box is [0, 1]; its IRLS
+/// iterate ends on the bound, or within rounding of it, when the photos ask for more): the metal family is
+/// then searched too ([`search_lobe`]).
+pub const SPECULAR_BOUND: f64 = 0.99;
 /// IRLS rounds of the 4-variable solve (converges in a handful).
 const IRLS_ITERS: usize = 12;
 
@@ -40,6 +44,8 @@ const IRLS_ITERS: usize = 12;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProfilePoint {
     pub roughness: f64,
+    /// The metallic parameter the point was evaluated at (held, not fitted, by [`profile`]).
+    pub metallic: f64,
     /// Mean per-channel L1 residual on the object's pixels after the best (ρ, s) for this roughness.
     pub loss: f64,
     pub base_color: [f64; 3],
@@ -96,7 +102,13 @@ pub fn profile(
     linear::solve(&problem, DataLoss::L1, &mut v, IRLS_ITERS);
     let loss = (0..3 * m).map(|i| (target[i] - (0..4).map(|u| cols[u][i] * v[u]).sum::<f64>()).abs()).sum::<f64>()
         / (3 * m.max(1)) as f64;
-    Ok(ProfilePoint { roughness: r, loss, base_color: [v[0], v[1], v[2]], specular: v[3] })
+    Ok(ProfilePoint {
+        roughness: r,
+        metallic: x[idx(k, METALLIC)],
+        loss,
+        base_color: [v[0], v[1], v[2]],
+        specular: v[3],
+    })
 }
 
 /// Minimises the profile loss of object `k` over roughness: the coarse [`GRID`], then golden-section search
@@ -123,28 +135,79 @@ pub fn search(
     if worst - grid[best].loss < FLAT_PROFILE * mean_target {
         return Ok((grid[best], evals));
     }
-    let mut lo = if best == 0 { 0.0 } else { GRID[best - 1] };
-    let mut hi = if best + 1 == GRID.len() { 1.0 } else { GRID[best + 1] };
+    let lo = if best == 0 { 0.0 } else { GRID[best - 1] };
+    let hi = if best + 1 == GRID.len() { 1.0 } else { GRID[best + 1] };
+    golden(lo, hi, |r| eval(r, &mut evals))?;
+    let best = evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss)).unwrap_or(grid[0]);
+    Ok((best, evals))
+}
+
+/// Golden-section minimisation of `eval` inside `[lo, hi]` for [`GOLDEN_STEPS`] steps; the caller keeps every
+/// evaluation and takes the best.
+fn golden(
+    mut lo: f64,
+    mut hi: f64,
+    mut eval: impl FnMut(f64) -> Result<ProfilePoint, TracerError>,
+) -> Result<(), TracerError> {
     const INV_PHI: f64 = 0.618_033_988_749_894_9;
     let mut a = hi - INV_PHI * (hi - lo);
     let mut b = lo + INV_PHI * (hi - lo);
-    let mut pa = eval(a, &mut evals)?;
-    let mut pb = eval(b, &mut evals)?;
+    let mut pa = eval(a)?;
+    let mut pb = eval(b)?;
     for _ in 0..GOLDEN_STEPS {
         if pa.loss <= pb.loss {
             hi = b;
             b = a;
             pb = pa;
             a = hi - INV_PHI * (hi - lo);
-            pa = eval(a, &mut evals)?;
+            pa = eval(a)?;
         } else {
             lo = a;
             a = b;
             pa = pb;
             b = lo + INV_PHI * (hi - lo);
-            pb = eval(b, &mut evals)?;
+            pb = eval(b)?;
         }
     }
-    let best = evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss)).unwrap_or(grid[0]);
+    Ok(())
+}
+
+/// The best lobe of object k over roughness and metallic: the dielectric lobe ([`search`] at metallic 0), and
+/// only when its specular strength is at its bound — the photos ask for a stronger reflection than a
+/// dielectric's F0 ≤ 0.08 gives — the metal family too: [`search`] at metallic 1, then a golden-section
+/// search on metallic in [0, 1] at the better family's roughness. A principled BSDF between the two families
+/// (Modern Hall's tiled floor at metallic 0.75) is fitted by neither end: its dielectric fit put the tiles'
+/// colour 0.1 too dark (docs/optim/design-measurements.md, "Metals between dielectric and conductor"). All
+/// evaluations share `key` (common random numbers), so the families are compared on the same paths.
+pub fn search_lobe(
+    ctx: &Ctx<'_>,
+    x: &[f64],
+    k: usize,
+    samples: &[Sample],
+    spp: u32,
+    key: u64,
+) -> Result<(ProfilePoint, Vec<ProfilePoint>), TracerError> {
+    let at = |m: f64| {
+        let mut xm = x.to_vec();
+        xm[idx(k, METALLIC)] = m;
+        xm
+    };
+    let (dielectric, mut evals) = search(ctx, &at(0.0), k, samples, spp, key)?;
+    if dielectric.specular < SPECULAR_BOUND {
+        return Ok((dielectric, evals));
+    }
+    let (metal, metal_evals) = search(ctx, &at(1.0), k, samples, spp, key)?;
+    evals.extend(metal_evals);
+    let r = if metal.loss < dielectric.loss { metal.roughness } else { dielectric.roughness };
+    let mut xr = x.to_vec();
+    xr[idx(k, ROUGHNESS)] = r;
+    golden(0.0, 1.0, |m| {
+        let mut xm = xr.clone();
+        xm[idx(k, METALLIC)] = m;
+        let p = profile(ctx, &xm, k, r, samples, spp, key)?;
+        evals.push(p);
+        Ok(p)
+    })?;
+    let best = evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss)).unwrap_or(dielectric);
     Ok((best, evals))
 }

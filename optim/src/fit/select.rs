@@ -388,14 +388,21 @@ pub fn choose_models(
             let mut base = x.clone();
             base[idx(k, SPECULAR)] = TRIAL_SPECULAR;
             base[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
-            let (best, evals) =
-                roughness::search(ctx, &base, k, &samples, (s.solve_spp / 2).max(1), key::SELECT_ROUGHNESS + k as u64)?;
-            tracing::debug!(object = k, ?best, evals = evals.len(), "roughness search");
+            let (best, evals) = roughness::search_lobe(
+                ctx,
+                &base,
+                k,
+                &samples,
+                (s.solve_spp / 2).max(1),
+                key::SELECT_ROUGHNESS + k as u64,
+            )?;
+            tracing::debug!(object = k, ?best, evals = evals.len(), "lobe search");
             for c in 0..3 {
                 xt[idx(k, BASE_COLOR + c)] = best.base_color[c];
             }
             xt[idx(k, ROUGHNESS)] = best.roughness;
             xt[idx(k, SPECULAR)] = best.specular;
+            xt[idx(k, METALLIC)] = best.metallic;
             progress.set_position(position + k as u64 + 1);
         }
         // Common random numbers for both renders: the paired differences then carry little path noise.
@@ -423,17 +430,19 @@ pub fn choose_models(
                     x[idx(k, p)] = xt[idx(k, p)];
                 }
                 why[k].push(format!(
-                    "specular lobe (roughness {:.3}, specular {:.3}) kept: it lowers the {test_name} L1 by {:.1} % of the mean radiance on {} pixels (t = {t:.1})",
+                    "specular lobe (roughness {:.3}, specular {:.3}, metallic {:.3}) kept: it lowers the {test_name} L1 by {:.1} % of the mean radiance on {} pixels (t = {t:.1})",
                     xt[idx(k, ROUGHNESS)],
                     xt[idx(k, SPECULAR)],
+                    xt[idx(k, METALLIC)],
                     100.0 * rel,
                     d.len()
                 ));
             } else {
                 why[k].push(format!(
-                    "diffuse: the best specular lobe (roughness {:.3}, specular {:.3}) changed the {test_name} L1 by {:+.2} % on {} pixels (t = {t:.1}; needs t > {T_KEEP} and > {:.1} %)",
+                    "diffuse: the best specular lobe (roughness {:.3}, specular {:.3}, metallic {:.3}) changed the {test_name} L1 by {:+.2} % on {} pixels (t = {t:.1}; needs t > {T_KEEP} and > {:.1} %)",
                     xt[idx(k, ROUGHNESS)],
                     xt[idx(k, SPECULAR)],
+                    xt[idx(k, METALLIC)],
                     -100.0 * rel,
                     d.len(),
                     100.0 * MIN_GAIN

@@ -9,6 +9,8 @@ in the scan frame). Metrics, one CSV row each (`scene,metric,subset,value,count`
   such pixels of all held-out views and the three channels). The estimate at a pixel is the albedo of the
   exported triangle hit by the same pixel-centre ray; where the ray misses the export (or there is none) it
   is the per-object base colour of the true object. Conductors' truth is their F0 colour (as in the fit).
+  Subset `export` (or `per-object` without an export), and the same per true kind of the object
+  (`export diffuse`, `export glossy`, `export metal`): the field's targets are stated on diffuse surfaces.
 - `albedo_export_coverage`: the share of those pixels whose ray hit the export (the rest use the fallback).
 - `albedo_l1` per kind (diffuse / glossy / metal / all): mean over the objects some training photo sees of
   the mean absolute RGB difference of the per-object base colour.
@@ -207,7 +209,8 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
     nov = scan_dir / "novel"
     mesh = run_dir / "export" / "mesh.ply"
     exported = export_albedo_images(mesh, cameras, mi) if mesh.is_file() else [(None, None, None)] * len(cameras)
-    t_imgs, e_imgs, masks, fallbacks = [], [], [], []
+    t_imgs, e_imgs, masks, fallbacks, kind_ids = [], [], [], [], []
+    kind_of = {i: KINDS.index(o["kind"]) for i, o in truth.items() if o.get("kind") in KINDS}
     for cam, (img, _, hit) in zip(cameras, exported):
         t = layout.read_exr(nov / "albedo" / f"{cam.name}.exr").astype(np.float64)
         ids = np.load(nov / "object_id" / f"{cam.name}.npy")
@@ -219,8 +222,15 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
         fallbacks.append(fallback)
         m = (ids > 0) & ~np.isin(ids, [i for i, o in truth.items() if o["emitting"]])
         t_imgs.append(t), e_imgs.append(e), masks.append(m)
+        kind_ids.append(np.vectorize(lambda i: kind_of.get(int(i), -1), otypes=[np.int64])(ids))
     value, n = albedo_psnr(t_imgs, e_imgs, masks)
-    row("albedo_psnr", "export" if mesh.is_file() else "per-object", value, n)
+    source = "export" if mesh.is_file() else "per-object"
+    row("albedo_psnr", source, value, n)
+    for j, kind in enumerate(KINDS):
+        # Per true material kind: the field's targets are stated on diffuse surfaces.
+        kind_masks = [m & (k == j) for m, k in zip(masks, kind_ids)]
+        value, n_kind = albedo_psnr(t_imgs, e_imgs, kind_masks)
+        row("albedo_psnr", f"{source} {kind}", value, n_kind)
     if mesh.is_file():
         # The same without the atlas's sub-triangle detail: one base colour per exported triangle.
         e_flat = [np.where(hit[..., None], flat, fb) for (_, flat, hit), fb in zip(exported, fallbacks)]
