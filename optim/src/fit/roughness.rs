@@ -175,10 +175,11 @@ fn golden(
 /// The best lobe of object k over roughness and metallic: the dielectric lobe ([`search`] at metallic 0), and
 /// only when its specular strength is at its bound — the photos ask for a stronger reflection than a
 /// dielectric's F0 ≤ 0.08 gives — the metal family too: [`search`] at metallic 1, then a golden-section
-/// search on metallic in [0, 1] at the better family's roughness. A principled BSDF between the two families
-/// (Modern Hall's tiled floor at metallic 0.75) is fitted by neither end: its dielectric fit put the tiles'
-/// colour 0.1 too dark (docs/optim/design-measurements.md, "Metals between dielectric and conductor"). All
-/// evaluations share `key` (common random numbers), so the families are compared on the same paths.
+/// search on metallic in [0, 1] at the better family's roughness, and, when the best metallic lies strictly
+/// between the two, [`search`] once more at it. A principled BSDF between the two families (Modern Hall's
+/// tiled floor at metallic 0.75) is fitted by neither end: its dielectric fit put the tiles' colour 0.1 too
+/// dark (docs/optim/design-measurements.md, "Metals between dielectric and conductor"). All evaluations share
+/// `key` (common random numbers), so the families are compared on the same paths.
 pub fn search_lobe(
     ctx: &Ctx<'_>,
     x: &[f64],
@@ -208,6 +209,13 @@ pub fn search_lobe(
         evals.push(p);
         Ok(p)
     })?;
-    let best = evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss)).unwrap_or(dielectric);
-    Ok((best, evals))
+    let best = |evals: &[ProfilePoint]| evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss));
+    let blend = best(&evals).unwrap_or(dielectric);
+    if blend.metallic > 0.0 && blend.metallic < 1.0 {
+        // A blend of the two families: its roughness searched again at its metallic (one round of coordinate
+        // descent on the profile loss over (roughness, metallic)).
+        let (_, blend_evals) = search(ctx, &at(blend.metallic), k, samples, spp, key)?;
+        evals.extend(blend_evals);
+    }
+    Ok((best(&evals).unwrap_or(dielectric), evals))
 }
