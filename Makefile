@@ -46,7 +46,8 @@ fuzz:
 	scripts/fuzz $(or $(CASES),1000000)
 
 # The realistic evaluation corpus (docs/realistic/README.md): every named scene built into CORPUS_DIR, outside
-# git. Renders on one thread by default (CORPUS_THREADS); `house` takes the longest.
+# git. Renders on one thread by default (CORPUS_THREADS); `house` takes the longest. A scene already built from
+# the same XML and settings is kept (`scripts/corpus build --force` rebuilds one).
 CORPUS_DIR ?= $(HOME)/.cache/ipt/corpus
 CORPUS_SCENES ?= room-textured room-two-lights room-daylight modern-hall house
 CORPUS_THREADS ?= 1

@@ -282,6 +282,22 @@ def test_scorer_splits_albedo_psnr_by_true_kind(tiny, tmp_path):
     assert wrong["export metal"][1] > 0 and wrong["export diffuse"][1] > 0
 
 
+def test_a_finished_build_is_kept_unless_its_xml_or_settings_change(tiny):
+    """Building again into a directory that holds a finished build of the same XML and settings returns its
+    record without rendering; another setting or another XML does not match it."""
+    xml, up, defaults = scenes.resolve("tiny", tiny)
+    logs = []
+    record = scan.build(xml, tiny, "tiny", up=up, seed=3, log=logs.append, **defaults)
+    assert record == truth(tiny)
+    assert len(logs) == 1 and "already built" in logs[0]
+    settings = {k: v for k, v in record["settings"].items() if k in ("width", "height", "spp", "max_depth",
+                                                                       "positions", "novel_positions", "novel_spp",
+                                                                       "hfov_deg", "seed")}
+    assert scan.finished_build(tiny, record["source_sha256"], settings) == record
+    assert scan.finished_build(tiny, record["source_sha256"], {**settings, "spp": settings["spp"] + 1}) is None
+    assert scan.finished_build(tiny, "0" * 64, settings) is None
+
+
 def test_scores_are_written_as_csv_and_markdown(tiny, tmp_path):
     fake_run(tiny, tmp_path / "run")
     rows = score.score(tiny, tmp_path / "run", renders=tmp_path / "none", pipeline=None, log=lambda *_: None)

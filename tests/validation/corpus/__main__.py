@@ -20,6 +20,8 @@ def main(argv=None) -> int:
     b.add_argument("--hfov", type=float, default=60.0, help="horizontal field of view, degrees")
     b.add_argument("--seed", type=int, default=0)
     b.add_argument("--threads", type=int, default=1)
+    b.add_argument("--force", action="store_true",
+                   help="rebuild even when OUT_DIR holds a finished build of the same XML and settings")
     s = sub.add_parser("score", help="score a pipeline run against a scan's ground truth")
     s.add_argument("scan_dir", type=Path)
     s.add_argument("run_dir", type=Path)
@@ -62,7 +64,7 @@ def main(argv=None) -> int:
                 opts[k] = getattr(a, k)
         house = Path(a.scene).stem if a.scene not in scenes.SCENES else a.scene
         scan.build(xml, a.out_dir, house, up=a.up or up, hfov=a.hfov, seed=a.seed, threads=a.threads,
-                   scene_name=house, **opts)
+                   scene_name=house, force=a.force, **opts)
         return 0
     if a.cmd == "rerender":
         from .rerender import rerender

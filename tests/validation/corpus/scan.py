@@ -22,6 +22,7 @@ Pixels that see a portal are labelled with the portal's id (an emitter: excluded
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import time
@@ -147,6 +148,22 @@ def novel_cameras(space, bbox, train_eyes, count, width, height, hfov, rng) -> l
     return out
 
 
+def finished_build(out_dir: Path, source_sha256: str, settings: dict) -> dict | None:
+    """The ground-truth record of a finished build in `out_dir` from an XML of hash `source_sha256` with
+    `settings` (the thread count aside: it does not change the renders' content), else None. A record without
+    a hash (a build older than the hash) does not match."""
+    path = Path(out_dir) / "ground_truth.json"
+    if not path.is_file():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    same = (record.get("format") == "ipt-corpus-truth/1" and record.get("source_sha256") == source_sha256
+            and all(record.get("settings", {}).get(k) == v for k, v in settings.items()))
+    return record if same else None
+
+
 def build(
     xml_path: Path,
     out_dir: Path,
@@ -164,13 +181,26 @@ def build(
     threads: int = 1,
     scene_name: str | None = None,
     log=print,
+    force: bool = False,
 ) -> dict:
-    """Builds the scan of `xml_path` into `out_dir` (module docs); returns the ground-truth record."""
-    mi = convert.init_mitsuba(threads)
+    """Builds the scan of `xml_path` into `out_dir` (module docs); returns the ground-truth record. A scan that
+    `out_dir` already holds, finished (its `ground_truth.json` is written last) from the same XML (SHA-256 of
+    its bytes) with the same settings, is kept and its record returned, unless `force`: a Mitsuba build costs
+    minutes."""
     t0 = time.time()
     # Held-out renders are references for PSNR: 4× the training samples halves their noise.
     novel_spp = novel_spp or 4 * spp
     out_dir = Path(out_dir)
+    source_sha256 = hashlib.sha256(Path(xml_path).read_bytes()).hexdigest()
+    settings = dict(width=width, height=height, spp=spp, max_depth=max_depth, positions=positions,
+                    novel_positions=novel_positions, novel_spp=novel_spp, hfov_deg=hfov, seed=seed)
+    kept = None if force else finished_build(out_dir, source_sha256, settings)
+    if kept is not None:
+        log(f"{out_dir}: already built from this XML with these settings (kept; --force rebuilds)")
+        return kept
+    # Written last: a build that stops half way leaves no record, and is not taken for finished.
+    (out_dir / "ground_truth.json").unlink(missing_ok=True)
+    mi = convert.init_mitsuba(threads)
     rot = convert.UP_ROTATIONS[up]
     full, render_scene = load_scenes(Path(xml_path), mi)
     objects, dropped = convert.scene_objects(full, up, seed, mi)
@@ -237,10 +267,10 @@ def build(
         "scene": scene_name or house,
         "house": house,
         "source_xml": str(Path(xml_path).resolve()),
+        "source_sha256": source_sha256,
         "up_axis_of_source": up,
-        "settings": dict(width=width, height=height, spp=spp, max_depth=max_depth, positions=positions,
-                         novel_positions=novel_positions, novel_spp=novel_spp, hfov_deg=hfov, seed=seed, threads=threads,
-                         integrator="path", max_depth_convention="scattering events (Mitsuba max_depth - 1)"),
+        "settings": dict(**settings, threads=threads, integrator="path",
+                         max_depth_convention="scattering events (Mitsuba max_depth - 1)"),
         "emitter_threshold": {"relative": EMITTER_THRESHOLD, "absolute": EMITTER_THRESHOLD * brightest,
                               "brightest": brightest},
         "dropped": [vars(d) for d in dropped],
