@@ -131,7 +131,8 @@ pub fn html(data: &ReportData) -> String {
          td,th{{border:1px solid #ccc;padding:3px 6px;text-align:right}} th{{background:#f4f4f4}} \
          td.l{{text-align:left}} .sw{{display:inline-block;width:2.2em;height:1.1em;border:1px solid #555;vertical-align:middle}} \
          .views img{{max-width:32%;margin-right:.5%}} figure{{margin:0 0 1em 0}} \
-         .wide{{overflow-x:auto}} td.why{{min-width:24em}}</style></head><body>\n",
+         .wide{{overflow-x:auto}} .wide table{{width:100%}} td.why{{color:#444;font-size:90%;border-top:none}} \
+         tr.data td{{border-bottom:none}}</style></head><body>\n",
         escape(&data.title)
     );
     let _ = writeln!(s, "<h1>{}</h1>", escape(&data.title));
@@ -154,18 +155,19 @@ pub fn html(data: &ReportData) -> String {
     let max_e = data.objects.iter().flat_map(|o| o.emission).fold(0.0f32, f32::max);
     let e_scale = if max_e > 0.0 { 1.0 / max_e } else { 1.0 };
     s.push_str(
-        // The reasons are sentences: their column keeps a readable width, and a narrow window scrolls the
-        // table instead of squeezing them to a word per line.
+        // The reasons are sentences, up to a paragraph each: each object's is a row of its own under its
+        // values, as wide as the table, so that neither the reasons nor the values are squeezed or cut off.
         "<div class=\"wide\"><table><tr><th>id</th><th>label</th><th>triangles</th><th>model</th><th>base colour</th><th>r g b</th>\
-         <th>roughness</th><th>metallic</th><th>specular</th><th>emission</th><th>r g b</th><th>why this model</th></tr>\n",
+         <th>roughness</th><th>metallic</th><th>specular</th><th>emission</th><th>r g b</th></tr>\n",
     );
     for (i, o) in data.objects.iter().enumerate() {
         let [r, g, b] = o.base_color;
         let [er, eg, eb] = o.emission;
         let _ = writeln!(
             s,
-            "<tr><td>{}</td><td class=\"l\">{}</td><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{r:.3} {g:.3} {b:.3}</td>\
-             <td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{}</td><td>{er:.4} {eg:.4} {eb:.4}</td><td class=\"l why\">{}</td></tr>",
+            "<tr class=\"data\"><td>{}</td><td class=\"l\">{}</td><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{r:.3} {g:.3} {b:.3}</td>\
+             <td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{}</td><td>{er:.4} {eg:.4} {eb:.4}</td></tr>\n\
+             <tr><td></td><td class=\"l why\" colspan=\"10\">{}</td></tr>",
             o.id,
             escape(&o.label),
             o.triangles,
@@ -311,7 +313,7 @@ mod tests {
         );
         assert!(page.contains("<svg") && page.contains("<polyline"));
         assert!(page.contains("background:#ff0000"));
-        assert!(page.contains("<td class=\"l why\">because</td></tr>\n</table></div>"));
+        assert!(page.contains("<tr><td></td><td class=\"l why\" colspan=\"10\">because</td></tr>\n</table></div>"));
         assert!(!page.contains("src=\"http") && !page.contains("href="));
         assert!(page.contains("2000000 traced, 3 discarded as non-finite (1.50e-6 of them)."), "samples line");
         let none = samples_sentence(&SampleCounts { traced_paths: 10, discarded: 0 });
