@@ -1,8 +1,11 @@
-//! Roughness of one object by a 1-D search on its profile loss.
+//! Roughness (and, where a dielectric cannot reflect enough, metallic) of one object by 1-D searches on its
+//! profile loss.
 //!
-//! For a fixed roughness r, an object's own pixels are (to first order, the light it sends back to itself
-//! through other surfaces aside) linear in its base colour and its specular strength: the diffuse lobe is
-//! ρ·(1 − F)/π and the specular lobe is linear in F0 = 0.08·s. So the profile loss
+//! For a fixed roughness r and metallic m, an object's own pixels are (to first order, the light it sends
+//! back to itself through other surfaces aside) nearly linear in its base colour and its specular strength:
+//! the diffuse lobe is (1 − m)·ρ/π weighted by (1 − F)², the specular lobe is linear in
+//! F0 = (1 − m)·0.08·s + m·ρ (tracer/src/bsdf/mod.rs), and the solve below linearises about the current
+//! values. So the profile loss
 //! `P(r) = min over (ρ, s) of the L1 residual on the object's pixels` is cheap: one value render at r, one
 //! Jacobian pass for (ρ_rgb, s), and a 4-variable box-constrained IRLS solve. `P` is searched on a coarse grid
 //! and refined by golden-section search, every evaluation with the same random numbers (common random
@@ -200,12 +203,8 @@ pub fn search_lobe(
     let (metal, metal_evals) = search(ctx, &at(1.0), k, samples, spp, key)?;
     evals.extend(metal_evals);
     let r = if metal.loss < dielectric.loss { metal.roughness } else { dielectric.roughness };
-    let mut xr = x.to_vec();
-    xr[idx(k, ROUGHNESS)] = r;
     golden(0.0, 1.0, |m| {
-        let mut xm = xr.clone();
-        xm[idx(k, METALLIC)] = m;
-        let p = profile(ctx, &xm, k, r, samples, spp, key)?;
+        let p = profile(ctx, &at(m), k, r, samples, spp, key)?;
         evals.push(p);
         Ok(p)
     })?;
