@@ -141,8 +141,12 @@ pub fn search(
     let lo = if best == 0 { 0.0 } else { GRID[best - 1] };
     let hi = if best + 1 == GRID.len() { 1.0 } else { GRID[best + 1] };
     golden(lo, hi, |r| eval(r, &mut evals))?;
-    let best = evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss)).unwrap_or(grid[0]);
-    Ok((best, evals))
+    Ok((lowest(&evals).unwrap_or(grid[0]), evals))
+}
+
+/// The evaluation with the lowest profile loss.
+fn lowest(evals: &[ProfilePoint]) -> Option<ProfilePoint> {
+    evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss))
 }
 
 /// Golden-section minimisation of `eval` inside `[lo, hi]` for [`GOLDEN_STEPS`] steps; the caller keeps every
@@ -208,13 +212,12 @@ pub fn search_lobe(
         evals.push(p);
         Ok(p)
     })?;
-    let best = |evals: &[ProfilePoint]| evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss));
-    let blend = best(&evals).unwrap_or(dielectric);
+    let blend = lowest(&evals).unwrap_or(dielectric);
     if blend.metallic > 0.0 && blend.metallic < 1.0 {
         // A blend of the two families: its roughness searched again at its metallic (one round of coordinate
         // descent on the profile loss over (roughness, metallic)).
         let (_, blend_evals) = search(ctx, &at(blend.metallic), k, samples, spp, key)?;
         evals.extend(blend_evals);
     }
-    Ok((best(&evals).unwrap_or(dielectric), evals))
+    Ok((lowest(&evals).unwrap_or(dielectric), evals))
 }
