@@ -150,6 +150,11 @@ const SHRINK: bool = true;
 /// object-level update in [`shrink_to_object`] (a uniform object keeps its value 999 times in 1000 per step).
 const CHI2_3_999: f64 = 16.266;
 
+/// Floor of a triangle's ratio variance in the τ² estimate of [`shrink_to_object`], whose weights are 1/v_t:
+/// far below any variance a Monte Carlo render and a photo's noise give (an albedo's standard error of 10⁻⁶),
+/// it only keeps a triangle whose pixels happen to agree exactly from taking an infinite weight.
+const MIN_VARIANCE: f64 = 1e-12;
+
 /// One fit step's evidence per triangle, over the pixels its update uses: the current base colour, the sums of
 /// photo and render values, of squared differences (photo − render)², and the pixel count.
 #[derive(Debug, Clone, Copy)]
@@ -186,7 +191,9 @@ impl Evidence<'_> {
 /// observed triangles' pixels (one ratio of two large sums: the per-triangle ratio T_t/R_t has the noise of a
 /// few dozen pixels' renders in its denominator, which biases it upwards — E\[1/R\] > 1/E\[R\] — far more), the
 /// estimates r_t have sampling variances v_t ([`Evidence::ratio_variance`]), and the spread of the true values
-/// τ² = max(0, mean_t[(r_t − m)² − v_t]) is what the estimates scatter beyond their noise. Each estimate becomes
+/// τ² is what the estimates scatter beyond their noise (the method of moments with weights 1/v_t, as
+/// DerSimonian–Laird's, so that a triangle with a huge variance does not hide the others' spread). Each
+/// estimate becomes
 /// m + τ²/(τ² + v_t)·(r_t − m): on a uniform object (scatter explained by noise, τ² ≈ 0) every triangle keeps
 /// the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen in a single pixel (no
 /// measurable noise) or in fewer than `MIN_INTERIOR` interior pixels (its estimate rests on pixels shared with
@@ -250,18 +257,35 @@ pub fn shrink_to_object(
             Some(if z2 > CHI2_3_999 { m } else { cur })
         })
         .collect();
-    let mut excess = vec![(DVec3::ZERO, 0usize); objects];
+    // τ² per object and channel by the method of moments with inverse-variance weights a_t = 1/v_t: each
+    // E[(r_t − m)²] = v_t + τ², so Σ a_t (r_t − m)² has expectation k + τ²·Σ a_t (k triangles). The unweighted
+    // mean of (r_t − m)² − v_t solves the same moments with equal weights, and is dominated by the few triangles
+    // whose variance is huge (a sliver with a near-zero render: mean v_t = 38 against a spread of 0.05 on the
+    // textured room's cabinet after three rounds of splits), which set τ² to 0 and flattened a striped object
+    // onto one colour; weighted by 1/v_t such a triangle counts for nothing (docs/optim/design-measurements.md,
+    // "Shrinkage with triangles of very unequal noise").
+    let mut moments = vec![(DVec3::ZERO, DVec3::ZERO, 0usize); objects];
     for (t, v) in var.iter().enumerate() {
         let (Some(v), Some(m)) = (v, mean[face_object[t] as usize]) else { continue };
         if ev.interior[t] < MIN_INTERIOR {
             continue;
         }
+        let a = DVec3::ONE / v.max(DVec3::splat(MIN_VARIANCE));
         let d = ratio[t].as_dvec3() - m;
-        let e = &mut excess[face_object[t] as usize];
-        e.0 += d * d - *v;
-        e.1 += 1;
+        let e = &mut moments[face_object[t] as usize];
+        e.0 += a * d * d;
+        e.1 += a;
+        e.2 += 1;
     }
-    let tau2: Vec<DVec3> = excess.iter().map(|(s, k)| (*s / (*k).max(1) as f64).max(DVec3::ZERO)).collect();
+    let tau2: Vec<DVec3> = moments
+        .iter()
+        .map(|&(q, s, k)| {
+            if k == 0 {
+                return DVec3::ZERO;
+            }
+            ((q - DVec3::splat(k as f64)) / s).max(DVec3::ZERO)
+        })
+        .collect();
     (0..ratio.len())
         .map(|t| {
             let o = face_object[t] as usize;
@@ -464,6 +488,11 @@ mod tests {
     type Sums = (Vec<DVec3>, Vec<DVec3>, Vec<DVec3>, Vec<f64>, Vec<usize>);
 
     fn evidence(old: &[Vec3], truth: &[Vec3], v: f64) -> Sums {
+        evidence_each(old, truth, &vec![v; old.len()])
+    }
+
+    /// [`evidence`] with its own ratio variance per triangle.
+    fn evidence_each(old: &[Vec3], truth: &[Vec3], v: &[f64]) -> Sums {
         let n = 100.0;
         let t_sum: Vec<DVec3> = truth.iter().map(|_| DVec3::splat(n * 0.5)).collect();
         let r_sum: Vec<DVec3> =
@@ -472,7 +501,7 @@ mod tests {
         let d_sq: Vec<DVec3> = (0..old.len())
             .map(|t| {
                 let rho = old[t].as_dvec3();
-                let s2 = DVec3::splat(v) * r_sum[t] * r_sum[t] / (rho * rho * n);
+                let s2 = DVec3::splat(v[t]) * r_sum[t] * r_sum[t] / (rho * rho * n);
                 let mean_d = (t_sum[t] - r_sum[t]) / n;
                 s2 * (n - 1.0) + mean_d * mean_d * n
             })
@@ -499,6 +528,32 @@ mod tests {
         for t in 4..8 {
             // τ² ≈ 0.09 ≫ v: shrink factor ≈ 1e-4/0.09, the values move by < 0.001.
             assert!((out[t].x - ratio[t].x).abs() < 1e-3, "{out:?}");
+        }
+    }
+
+    #[test]
+    fn a_few_triangles_with_huge_variance_do_not_flatten_a_textured_object() {
+        // A checker 0.2 / 0.8 seen with noise v = 1e-4, plus two slivers whose ratio is almost unmeasured
+        // (v = 100, a near-zero render). An unweighted mean of (r − m)² − v is −20 here (τ² = 0, every triangle
+        // flattened to m); the inverse-variance weighted moments keep the checker.
+        let truth: Vec<Vec3> =
+            [0.2, 0.8, 0.2, 0.8, 0.2, 0.8, 0.2, 0.8, 0.5, 0.5].iter().map(|&x| Vec3::splat(x)).collect();
+        let old = vec![Vec3::splat(0.5); truth.len()];
+        let mut v = vec![1e-4; 8];
+        v.extend([100.0, 100.0]);
+        let (t_sum, r_sum, d_sq, count, interior) = evidence_each(&old, &truth, &v);
+        let ev = Evidence { old: &old, t_sum: &t_sum, r_sum: &r_sum, d_sq: &d_sq, count: &count, interior: &interior };
+        let mut ratio = truth.clone();
+        // The slivers' ratios are far off, as unmeasured ones are.
+        ratio[8] = Vec3::splat(0.0);
+        ratio[9] = Vec3::splat(1.0);
+        let out = shrink_to_object(&ratio, &ev, &[0; 10], &[true; 10], 1);
+        for t in 0..8 {
+            assert!((out[t].x - truth[t].x).abs() < 1e-3, "triangle {t}: {out:?}");
+        }
+        // The slivers go (almost) to the object's value.
+        for t in 8..10 {
+            assert!((out[t].x - 0.5).abs() < 0.01, "triangle {t}: {out:?}");
         }
     }
 }
