@@ -282,6 +282,29 @@ def test_scorer_splits_albedo_psnr_by_true_kind(tiny, tmp_path):
     assert wrong["export metal"][1] > 0 and wrong["export diffuse"][1] > 0
 
 
+def test_scorer_splits_by_texture(tiny, tmp_path):
+    """An object is textured when its true per-pixel base colour varies over the held-out views; the textured
+    and untextured subsets of the albedo PSNR pool disjoint pixels that add up to all of them, and the L1
+    subsets hold only objects the held-out views show."""
+    ids = np.array([[1, 1, 2, 2], [1, 1, 2, 2]])
+    t = np.zeros((2, 4, 3))
+    t[:, :2] = 0.4
+    t[:, 2:] = [[0.2], [0.8]]
+    assert score.textured_objects([t], [ids]) == {1: False, 2: True}
+    # Below the threshold (a 0.5 % spread) counts as untextured.
+    t[:, :2] = [[0.400], [0.405]]
+    assert score.textured_objects([t], [ids])[1] is False
+    run = tmp_path / "run"
+    by_id = {o["id"]: o for o in fake_run(tiny, run)["objects"]}
+    write_export_mesh(tiny, run, lambda segment: by_id[segment]["base_color"])
+    rows = score.score(tiny, run, renders=tmp_path / "none", pipeline=None, log=lambda *_: None)
+    psnr = {r["subset"]: r["count"] for r in rows if r["metric"] == "albedo_psnr"}
+    assert psnr["export textured"] + psnr["export untextured"] == psnr["export"]
+    assert psnr["export textured"] > 0
+    l1 = {r["subset"]: r["count"] for r in rows if r["metric"] == "albedo_l1"}
+    assert l1["textured"] + l1["untextured"] <= l1["all"]
+
+
 def test_a_finished_build_is_kept_unless_its_xml_or_settings_change(tiny):
     """Building again into a directory that holds a finished build of the same XML and settings returns its
     record without rendering; another setting or another XML does not match it."""

@@ -458,13 +458,14 @@ fn summary(rows: &[Row], set: &[String], render_spp: u32) -> String {
          runs started). Each run: the whole pipeline on the scan with `quality` = the preset and `object.seed = 0`{}; \
          scored by `scripts/corpus score` with novel views rendered at {render_spp} paths per pixel. Data: \
          `realistic.csv`; plot: `realistic.svg`. Albedo PSNR is per pixel on the held-out views (export atlas), over all \
-         non-emitting surfaces and over those whose true material is diffuse (the subset the targets name); \
+         non-emitting surfaces, over those whose true material is diffuse and over textured ones (the subsets the \
+         targets name; an object is textured when its true base colour varies over the held-out views); \
          emission error is the mean over the true lights of ‖Δe‖₁/‖e‖₁ (a missed light counts 1).\n",
         if set.is_empty() { String::new() } else { format!(", overrides `{}`", set.join("`, `")) }
     );
     let _ = writeln!(
         s,
-        "| scene | preset | wall | CPU | peak RSS | albedo PSNR all / diffuse | albedo L1 diffuse / glossy / metal / all | emitter IoU \
+        "| scene | preset | wall | CPU | peak RSS | albedo PSNR all / diffuse / textured | albedo L1 diffuse / glossy / metal / untextured / all | emitter IoU \
          (object stage / export) | emission error (object / export) | novel PSNR run / truth materials |"
     );
     let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---|---|---|---|");
@@ -472,24 +473,29 @@ fn summary(rows: &[Row], set: &[String], render_spp: u32) -> String {
     for (scene, preset) in pairs(rows) {
         let v = |m: &str, sub: &str| value(rows, &scene, &preset, m, sub);
         let psnr = lookup(rows, &scene, &preset, "albedo_psnr", None);
-        // The scorer's per-kind subset (`export diffuse`, or `per-object diffuse` without an export).
-        let diffuse = rows
-            .iter()
-            .find(|r| {
-                r.scene == scene && r.preset == preset && r.metric == "albedo_psnr" && r.subset.ends_with(" diffuse")
-            })
-            .map(|r| r.value);
+        // The scorer's per-kind and per-texture subsets (`export diffuse`, or `per-object diffuse` without an
+        // export).
+        let psnr_of = |suffix: &str| {
+            rows.iter()
+                .find(|r| {
+                    r.scene == scene && r.preset == preset && r.metric == "albedo_psnr" && r.subset.ends_with(suffix)
+                })
+                .map(|r| r.value)
+        };
+        let (diffuse, textured) = (psnr_of(" diffuse"), psnr_of(" textured"));
         let _ = writeln!(
             s,
-            "| {scene} | {preset} | {} s | {} s | {} MB | {} / {} dB | {} / {} / {} / {} | {} / {} | {} / {} | {} / {} dB |",
+            "| {scene} | {preset} | {} s | {} s | {} MB | {} / {} / {} dB | {} / {} / {} / {} / {} | {} / {} | {} / {} | {} / {} dB |",
             f(v("wall_s", "total"), 0),
             f(v("cpu_s", "total"), 0),
             f(v("time_v_peak_rss_mb", "total").or(v("peak_rss_mb", "total")), 0),
             f(psnr, 2),
             f(diffuse, 2),
+            f(textured, 2),
             f(v("albedo_l1", "diffuse"), 3),
             f(v("albedo_l1", "glossy"), 3),
             f(v("albedo_l1", "metal"), 3),
+            f(v("albedo_l1", "untextured"), 3),
             f(v("albedo_l1", "all"), 3),
             f(v("emitter_iou", "objects"), 2),
             f(v("emitter_iou", "export"), 2),

@@ -10,10 +10,13 @@ in the scan frame). Metrics, one CSV row each (`scene,metric,subset,value,count`
   exported triangle hit by the same pixel-centre ray; where the ray misses the export (or there is none) it
   is the per-object base colour of the true object. Conductors' truth is their F0 colour (as in the fit).
   Subset `export` (or `per-object` without an export), and the same per true kind of the object
-  (`export diffuse`, `export glossy`, `export metal`): the field's targets are stated on diffuse surfaces.
+  (`export diffuse`, `export glossy`, `export metal`): the field's targets are stated on diffuse surfaces;
+  and over textured and untextured objects (`export textured`, `export untextured`: an object is textured
+  when its true per-pixel base colour over the held-out views varies by more than `TEXTURE_STD`).
 - `albedo_export_coverage`: the share of those pixels whose ray hit the export (the rest use the fallback).
-- `albedo_l1` per kind (diffuse / glossy / metal / all): mean over the objects some training photo sees of
-  the mean absolute RGB difference of the per-object base colour.
+- `albedo_l1` per kind (diffuse / glossy / metal / all) and per texture (untextured / textured; objects no
+  held-out view shows are in neither): mean over the objects some training photo sees of the mean absolute
+  RGB difference of the per-object base colour.
 - `emitter_iou`: intersection over union of the sets of emitting objects; an object emits when its largest
   emission channel exceeds `EMITTER_THRESHOLD` (scan.py: 1 %) of the brightest true light's, the same
   absolute threshold for truth and estimate (both are radiance in the photos' units).
@@ -57,6 +60,22 @@ def albedo_psnr(truth: list[np.ndarray], estimate: list[np.ndarray], masks: list
         se += float((d * d).sum())
         n += int(m.sum()) * 3
     return (psnr(se / n) if n else math.nan), n // 3
+
+
+# An object is textured when its true base colour varies over its held-out pixels by more than this standard
+# deviation (largest channel): the per-pixel truth of an untextured object is one value exactly, and a spread
+# of 1 % of the albedo range is below what an 8-bit photo of a lit surface resolves.
+TEXTURE_STD = 0.01
+
+
+def textured_objects(truth: list[np.ndarray], ids: list[np.ndarray]) -> dict[int, bool]:
+    """Per object id seen in the held-out views: whether its true per-pixel base colour is textured
+    ([`TEXTURE_STD`]); objects no held-out pixel shows are absent."""
+    values: dict[int, list[np.ndarray]] = {}
+    for t, i in zip(truth, ids):
+        for k in np.unique(i[i > 0]):
+            values.setdefault(int(k), []).append(t[i == k].reshape(-1, 3))
+    return {k: bool(np.concatenate(v).std(0).max() > TEXTURE_STD) for k, v in values.items()}
 
 
 def exposure_scale(img: np.ndarray) -> float:
@@ -209,7 +228,7 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
     nov = scan_dir / "novel"
     mesh = run_dir / "export" / "mesh.ply"
     exported = export_albedo_images(mesh, cameras, mi) if mesh.is_file() else [(None, None, None)] * len(cameras)
-    t_imgs, e_imgs, masks, fallbacks, kind_ids = [], [], [], [], []
+    t_imgs, e_imgs, masks, fallbacks, kind_ids, id_imgs = [], [], [], [], [], []
     kind_of = {i: KINDS.index(o["kind"]) for i, o in truth.items() if o.get("kind") in KINDS}
     for cam, (img, _, hit) in zip(cameras, exported):
         t = layout.read_exr(nov / "albedo" / f"{cam.name}.exr").astype(np.float64)
@@ -223,6 +242,8 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
         m = (ids > 0) & ~np.isin(ids, [i for i, o in truth.items() if o["emitting"]])
         t_imgs.append(t), e_imgs.append(e), masks.append(m)
         kind_ids.append(np.vectorize(lambda i: kind_of.get(int(i), -1), otypes=[np.int64])(ids))
+        id_imgs.append(ids)
+    textured = textured_objects(t_imgs, id_imgs)
     value, n = albedo_psnr(t_imgs, e_imgs, masks)
     source = "export" if mesh.is_file() else "per-object"
     row("albedo_psnr", source, value, n)
@@ -231,6 +252,11 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
         kind_masks = [m & (k == j) for m, k in zip(masks, kind_ids)]
         value, n_kind = albedo_psnr(t_imgs, e_imgs, kind_masks)
         row("albedo_psnr", f"{source} {kind}", value, n_kind)
+    for name, flag in (("textured", True), ("untextured", False)):
+        # The targets of the textured rooms are stated on textured surfaces (and on untextured objects' L1).
+        sub = [m & np.isin(ids, [i for i, t in textured.items() if t == flag]) for m, ids in zip(masks, id_imgs)]
+        value, n_sub = albedo_psnr(t_imgs, e_imgs, sub)
+        row("albedo_psnr", f"{source} {name}", value, n_sub)
     if mesh.is_file():
         # The same without the atlas's sub-triangle detail: one base colour per exported triangle.
         e_flat = [np.where(hit[..., None], flat, fb) for (_, flat, hit), fb in zip(exported, fallbacks)]
@@ -246,6 +272,11 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
         objs = [o for o in seen if kind == "all" or o["kind"] == kind]
         l1 = [float(np.mean(np.abs(np.subtract(est[o["id"]]["base_color"], o["base_color"])))) for o in objs]
         row("albedo_l1", kind, float(np.mean(l1)) if l1 else math.nan, len(l1))
+    for name, flag in (("untextured", False), ("textured", True)):
+        # Objects that no held-out view shows are in neither subset (their texture is not measured).
+        objs = [o for o in seen if textured.get(o["id"]) is flag]
+        l1 = [float(np.mean(np.abs(np.subtract(est[o["id"]]["base_color"], o["base_color"])))) for o in objs]
+        row("albedo_l1", name, float(np.mean(l1)) if l1 else math.nan, len(l1))
     glossy = [o for o in seen if o["kind"] in ("glossy", "metal")]
     err = [abs(est[o["id"]]["roughness"] - o["roughness"]) for o in glossy]
     row("roughness_abs_error", "glossy+metal", float(np.mean(err)) if err else math.nan, len(err))
