@@ -150,7 +150,8 @@ fn panel(s: &mut String, p: &Panel, ox: f64, oy: f64) {
         y0 + ph / 2.0,
         escape(&p.y_label)
     );
-    for (k, se) in p.series.iter().enumerate() {
+    let mut drawn: Vec<(f64, f64)> = Vec::new();
+    for se in &p.series {
         let pts: Vec<(f64, f64)> = se.points.iter().filter_map(|&(x, y)| Some((px(x)?, py(y)?))).collect();
         if se.line && pts.len() > 1 {
             let d: Vec<String> = pts.iter().map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
@@ -160,6 +161,13 @@ fn panel(s: &mut String, p: &Panel, ox: f64, oy: f64) {
                 d.join(" "),
                 se.color
             );
+            // The line's course, for the legend's placement below.
+            for w in pts.windows(2) {
+                drawn.extend((0..=LEGEND_LINE_SAMPLES).map(|i| {
+                    let t = f64::from(i) / f64::from(LEGEND_LINE_SAMPLES);
+                    (w[0].0 + t * (w[1].0 - w[0].0), w[0].1 + t * (w[1].1 - w[0].1))
+                }));
+            }
         }
         if se.markers {
             for (x, y) in &pts {
@@ -167,13 +175,43 @@ fn panel(s: &mut String, p: &Panel, ox: f64, oy: f64) {
                     writeln!(s, r#"<circle cx="{x:.1}" cy="{y:.1}" r="3" fill="{}" fill-opacity="0.8"/>"#, se.color);
             }
         }
-        // Legend, top right inside the panel.
-        let ly = y0 + 12.0 + 13.0 * k as f64;
-        let lx = x0 + pw - 150.0;
-        let _ = writeln!(s, r#"<rect x="{lx}" y="{}" width="10" height="3" fill="{}"/>"#, ly - 4.0, se.color);
-        let _ = writeln!(s, r#"<text x="{}" y="{ly}">{}</text>"#, lx + 14.0, escape(&se.name));
+        drawn.extend(pts);
+    }
+    // Legend: in the inner corner that covers the fewest drawn points and line samples (top right on a tie),
+    // on a translucent white box, so that it hides as little of the data as the panel allows.
+    let widest = p.series.iter().map(|se| se.name.chars().count()).max().unwrap_or(0) as f64;
+    let (lw, lh) = (LEGEND_CHAR_W * widest + 22.0, 13.0 * p.series.len() as f64 + 6.0);
+    let corners = [
+        (x0 + pw - lw - 4.0, y0 + 4.0),
+        (x0 + 4.0, y0 + 4.0),
+        (x0 + pw - lw - 4.0, y0 + ph - lh - 4.0),
+        (x0 + 4.0, y0 + ph - lh - 4.0),
+    ];
+    let covered = |&(bx, by): &(f64, f64)| {
+        drawn.iter().filter(|&&(x, y)| x >= bx && x <= bx + lw && y >= by && y <= by + lh).count()
+    };
+    let (bx, by) = corners.iter().copied().min_by_key(|c| covered(c)).unwrap_or(corners[0]);
+    if !p.series.is_empty() {
+        let _ = writeln!(
+            s,
+            r#"<rect x="{bx:.1}" y="{by:.1}" width="{lw:.1}" height="{lh:.1}" fill="white" fill-opacity="0.7"/>"#
+        );
+    }
+    for (k, se) in p.series.iter().enumerate() {
+        let ly = by + 14.0 + 13.0 * k as f64;
+        let lx = bx + 4.0;
+        let _ = writeln!(s, r#"<rect x="{lx:.1}" y="{:.1}" width="10" height="3" fill="{}"/>"#, ly - 4.0, se.color);
+        let _ = writeln!(s, r#"<text x="{:.1}" y="{ly:.1}">{}</text>"#, lx + 14.0, escape(&se.name));
     }
 }
+
+/// Points sampled along each segment of a series' line when choosing the legend's corner: a line that crosses
+/// a corner without a marker in it still counts.
+const LEGEND_LINE_SAMPLES: u32 = 20;
+
+/// Width of a legend character at the panels' 11 px sans-serif, an upper estimate of the average advance
+/// (most glyphs are 5–7 px): the box is sized to hold the longest name.
+const LEGEND_CHAR_W: f64 = 6.2;
 
 /// Indices of the points on the lower-left Pareto front of (cost, error): no other point is at most as costly
 /// and at most as wrong with one of the two strictly smaller. Sorted by cost.
@@ -305,5 +343,38 @@ mod tests {
         // The point at x = 0 has no place on a log axis and is left out.
         assert_eq!(s.matches("<circle").count(), 2);
         assert!(s.contains("a&lt;b"));
+    }
+
+    #[test]
+    fn the_legend_goes_to_the_corner_with_the_least_data() {
+        // A line from the bottom left to the top right, and a cloud of points in the top left: of the four
+        // inner corners only the bottom right is free.
+        let cloud: Vec<(f64, f64)> = (0..10).map(|i| (1.0 + 0.1 * f64::from(i), 9.0 + 0.1 * f64::from(i))).collect();
+        let p = Panel {
+            title: "t".into(),
+            x_label: "x".into(),
+            y_label: "y".into(),
+            log_x: false,
+            log_y: false,
+            series: vec![
+                Series {
+                    name: "diagonal".into(),
+                    color: PALETTE[0].into(),
+                    points: vec![(0.0, 0.0), (10.0, 10.0)],
+                    line: true,
+                    markers: false,
+                },
+                Series { name: "cloud".into(), color: PALETTE[1].into(), points: cloud, line: false, markers: true },
+            ],
+        };
+        let s = render("title", &[p], 1);
+        // The legend's box is the translucent white rectangle; its corner is right of and below the panel's
+        // centre (the panel spans x 62–446, y 58–334 in the document).
+        let line = s.lines().find(|l| l.contains(r#"fill="white" fill-opacity"#)).expect("a legend box");
+        let attr = |name: &str| -> f64 {
+            let start = line.find(&format!(r#" {name}=""#)).unwrap() + name.len() + 3;
+            line[start..].split('"').next().unwrap().parse().unwrap()
+        };
+        assert!(attr("x") > 254.0 && attr("y") > 196.0, "{line}");
     }
 }

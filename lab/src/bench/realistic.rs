@@ -390,6 +390,19 @@ fn lookup(rows: &[Row], scene: &str, preset: &str, metric: &str, subset: Option<
         .map(|r| r.value)
 }
 
+/// The albedo PSNR over one of the scorer's subsets of surfaces (`diffuse`, `textured`, ...): its row
+/// `export <name>`, or `per-object <name>` for a run without an export.
+fn subset_psnr(rows: &[Row], scene: &str, preset: &str, name: &str) -> Option<f64> {
+    rows.iter()
+        .find(|r| {
+            r.scene == scene
+                && r.preset == preset
+                && r.metric == "albedo_psnr"
+                && r.subset.strip_suffix(name).is_some_and(|head| head == "export " || head == "per-object ")
+        })
+        .map(|r| r.value)
+}
+
 fn value(rows: &[Row], scene: &str, preset: &str, metric: &str, subset: &str) -> Option<f64> {
     lookup(rows, scene, preset, metric, Some(subset))
 }
@@ -473,16 +486,8 @@ fn summary(rows: &[Row], set: &[String], render_spp: u32) -> String {
     for (scene, preset) in pairs(rows) {
         let v = |m: &str, sub: &str| value(rows, &scene, &preset, m, sub);
         let psnr = lookup(rows, &scene, &preset, "albedo_psnr", None);
-        // The scorer's per-kind and per-texture subsets (`export diffuse`, or `per-object diffuse` without an
-        // export).
-        let psnr_of = |suffix: &str| {
-            rows.iter()
-                .find(|r| {
-                    r.scene == scene && r.preset == preset && r.metric == "albedo_psnr" && r.subset.ends_with(suffix)
-                })
-                .map(|r| r.value)
-        };
-        let (diffuse, textured) = (psnr_of(" diffuse"), psnr_of(" textured"));
+        let (diffuse, textured) =
+            (subset_psnr(rows, &scene, &preset, "diffuse"), subset_psnr(rows, &scene, &preset, "textured"));
         let _ = writeln!(
             s,
             "| {scene} | {preset} | {} s | {} s | {} MB | {} / {} / {} dB | {} / {} / {} / {} / {} | {} / {} | {} / {} | {} / {} dB |",
@@ -521,17 +526,22 @@ fn plot(rows: &[Row]) -> String {
     let mut panels = Vec::new();
     for scene in &scenes(rows) {
         let presets: Vec<String> = pairs(rows).into_iter().filter(|(s, _)| s == scene).map(|(_, p)| p).collect();
-        let series = |name: &str, color: &str, metric: &str, subset: Option<&str>| {
+        let series_of = |name: &str, color: &str, y: &dyn Fn(&str) -> Option<f64>| {
             let points = presets
                 .iter()
                 .filter_map(|p| {
                     let cpu = value(rows, scene, p, "cpu_s", "total")?;
-                    let y = lookup(rows, scene, p, metric, subset)?;
+                    let y = y(p)?;
                     (cpu.is_finite() && y.is_finite()).then_some((cpu, y))
                 })
                 .collect();
             Series { name: name.into(), color: color.into(), points, line: true, markers: true }
         };
+        let series = |name: &str, color: &str, metric: &str, subset: Option<&str>| {
+            series_of(name, color, &|p| lookup(rows, scene, p, metric, subset))
+        };
+        let surfaces =
+            |name: &str, color: &str, subset: &str| series_of(name, color, &|p| subset_psnr(rows, scene, p, subset));
         panels.push(Panel {
             title: format!("{scene}: PSNR against CPU time ({})", presets.join(" → ")),
             x_label: "CPU s (whole pipeline)".into(),
@@ -540,7 +550,8 @@ fn plot(rows: &[Row]) -> String {
             log_y: false,
             series: vec![
                 series("albedo PSNR (held-out views)", svg::PALETTE[0], "albedo_psnr", None),
-                series("albedo PSNR, diffuse surfaces", svg::PALETTE[4], "albedo_psnr", Some("export diffuse")),
+                surfaces("albedo PSNR, diffuse surfaces", svg::PALETTE[4], "diffuse"),
+                surfaces("albedo PSNR, textured surfaces", svg::PALETTE[5], "textured"),
                 series("novel-view PSNR", svg::PALETTE[1], "novel_psnr", Some("run")),
             ],
         });

@@ -94,7 +94,7 @@ fn back_substitute(l: &[f64], y: &[f64]) -> Vec<f64> {
 }
 
 /// Solves `a x = b` for a symmetric positive definite `a` (row-major n×n) by Cholesky. `None` when `a` is
-/// singular to double precision ([`cholesky`]), and the caller falls back to a smaller model.
+/// singular to double precision (`cholesky`), and the caller falls back to a smaller model.
 #[must_use]
 pub fn solve_spd(a: &[f64], b: &[f64]) -> Option<Vec<f64>> {
     let n = b.len();

@@ -63,7 +63,7 @@ impl PixelSets {
     }
 
     /// `n` training pixels drawn uniformly with replacement from all training pixels of the photos, keyed by
-    /// (seed, stream, draw); with a complete pool exactly [`draw`] over `train`.
+    /// (seed, stream, draw); with a complete pool exactly [`draw()`] over `train`.
     #[must_use]
     pub fn draw_train(&self, n: usize, seed: u64, stream: u64, draw_key: u64) -> Vec<Sample> {
         let total = self.train_total();

@@ -1,4 +1,4 @@
-//! The base colour of an object that the photos do not see (fewer than [`super::solve::MIN_PIXELS`] training
+//! The base colour of an object that the photos do not see (fewer than `solve::MIN_PIXELS` training
 //! pixels): estimated from the light it reflects onto the surfaces they do see, and drawn towards a stated
 //! prior as far as that estimate is uncertain.
 //!
@@ -188,7 +188,7 @@ pub fn describe(result: [f64; 3], estimate: [f64; 3], se: [f64; 3], weight: [f64
 /// Standard errors of the base colours of `objects` in the fit at `x`, per channel: the sandwich A⁻¹BA⁻¹ of the
 /// weighted least-squares fit over the pixels of `draw`, with A = JᵀWJ (J = ∂I/∂θ for every base colour that
 /// reaches them and the emission of every light, from the cross products of two independent gradient-path
-/// estimates) and B = JᵀW Σ W J (Σ the rows' residual variances, robust scale per object, [`row_sigmas`]: both
+/// estimates) and B = JᵀW Σ W J (Σ the rows' residual variances, robust scale per object, `row_sigmas`: both
 /// the photos' and the render's noise and what the model cannot represent), divided by the `averaged`
 /// independent draws of this size behind the estimate (the Gauss–Newton steps it averages). The weights are
 /// the draw's sampling weights, not the rows' precisions, so σ²A⁻¹ alone is wrong wherever they differ from 1:
