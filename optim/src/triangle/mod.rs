@@ -54,8 +54,10 @@
 //!   the null (1.0 %), 4000 of 4000 for a light 6 % off.
 //! - **Fit check** (after the light's cycles): the re-solved state and the round's fit are rendered on up to
 //!   64 k of the round's pixels with the same random numbers; when the re-solved one fits the photos
-//!   significantly worse (paired t of the per-pixel L1 differences > 2), the light and the albedos go back to
-//!   the round's fit. The gate above tests whether the light moved, not whether it moved the right way.
+//!   significantly worse (paired t of the per-pixel L1 differences > 2), or its mean L1 is more than
+//!   [`light::MAX_LOSS_GROWTH`] times the fit's (a change confined to a few pixels is never significant,
+//!   however large), the light and the albedos go back to the round's fit. The gate above tests whether the
+//!   light moved, not whether it moved the right way.
 //! - **Shrinkage to the object** ([`ratio::shrink_to_object`]), before the smoothness solve at every step: no
 //!   per-triangle parameter the evidence does not call for. Per object, its value m is the object-level ratio
 //!   update ΣT/Σ(R/ρ) over its triangles with clean evidence (≥ 4 interior pixels), accepted only when it
