@@ -358,7 +358,7 @@ pub fn refine_light(
 /// L1 before and after: significantly worse (t above the object stage's step-check level), or with a mean L1
 /// more than [`MAX_LOSS_GROWTH`] times the start's, significant or not.
 #[must_use]
-pub fn fits_worse(t: f64, before: f64, after: f64) -> bool {
+fn fits_worse(t: f64, before: f64, after: f64) -> bool {
     t > crate::fit::step_check::WORSE_T || after > MAX_LOSS_GROWTH * before
 }
 

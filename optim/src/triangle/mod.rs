@@ -67,8 +67,8 @@
 //!   m + τ²/(τ² + v_t)·(r_t − m), with τ² the object's spread beyond noise by the method of moments with weights
 //!   1/v_t, τ² = max(0, (Σ (r_t − m)²/v_t − k)/Σ 1/v_t) over its k triangles with clean evidence (empirical
 //!   Bayes / James–Stein; unweighted, a few slivers of huge v_t hid a striped cabinet's spread and flattened
-//!   it): a uniform object (τ² ≈ 0) keeps its value on every triangle, a textured
-//!   one keeps its triangles' own values. Triangles seen in fewer than 4 interior pixels take m. Optionally
+//!   it): a uniform object (τ² ≈ 0) keeps its value on every triangle, a textured one keeps its triangles'
+//!   own values. Triangles seen in fewer than 4 interior pixels take m. Optionally
 //!   (`adam_iterations`, [`adam`]) Adam follows with batches of pixels and the object stage's loss weights,
 //!   `n_value`/`n_grad` paths, clamping, on base colour (and roughness/metallic of objects whose model has a
 //!   specular lobe).

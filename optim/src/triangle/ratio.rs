@@ -193,12 +193,11 @@ impl Evidence<'_> {
 /// estimates r_t have sampling variances v_t ([`Evidence::ratio_variance`]), and the spread of the true values
 /// τ² is what the estimates scatter beyond their noise (the method of moments with weights 1/v_t, as
 /// DerSimonian–Laird's, so that a triangle with a huge variance does not hide the others' spread). Each
-/// estimate becomes
-/// m + τ²/(τ² + v_t)·(r_t − m): on a uniform object (scatter explained by noise, τ² ≈ 0) every triangle keeps
-/// the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen in a single pixel (no
-/// measurable noise) or in fewer than `MIN_INTERIOR` interior pixels (its estimate rests on pixels shared with
-/// neighbours and absorbs their misfit) has no clean evidence of a difference: it takes m. Unobserved triangles (left to the
-/// smoothness solve) and those of emitting objects are unchanged. Only triangles with clean evidence enter m
+/// estimate becomes m + τ²/(τ² + v_t)·(r_t − m): on a uniform object (scatter explained by noise, τ² ≈ 0)
+/// every triangle keeps the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen
+/// in a single pixel (no measurable noise) or in fewer than `MIN_INTERIOR` interior pixels (its estimate rests
+/// on pixels shared with neighbours and absorbs their misfit) has no clean evidence of a difference: it takes
+/// m. Unobserved triangles (left to the smoothness solve) and those of emitting objects are unchanged. Only triangles with clean evidence enter m
 /// and τ²; with fewer than 2 of them an object keeps its current value.
 #[must_use]
 pub fn shrink_to_object(

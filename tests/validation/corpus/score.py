@@ -268,15 +268,16 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
 
     # Per-object albedo L1 and roughness.
     seen = [o for o in truth.values() if o["seen"] and not o["emitting"] and o["id"] in est]
-    for kind in (*KINDS, "all"):
-        objs = [o for o in seen if kind == "all" or o["kind"] == kind]
+
+    def l1_row(subset, objs):
         l1 = [float(np.mean(np.abs(np.subtract(est[o["id"]]["base_color"], o["base_color"])))) for o in objs]
-        row("albedo_l1", kind, float(np.mean(l1)) if l1 else math.nan, len(l1))
+        row("albedo_l1", subset, float(np.mean(l1)) if l1 else math.nan, len(l1))
+
+    for kind in (*KINDS, "all"):
+        l1_row(kind, [o for o in seen if kind == "all" or o["kind"] == kind])
     for name, flag in (("untextured", False), ("textured", True)):
         # Objects that no held-out view shows are in neither subset (their texture is not measured).
-        objs = [o for o in seen if textured.get(o["id"]) is flag]
-        l1 = [float(np.mean(np.abs(np.subtract(est[o["id"]]["base_color"], o["base_color"])))) for o in objs]
-        row("albedo_l1", name, float(np.mean(l1)) if l1 else math.nan, len(l1))
+        l1_row(name, [o for o in seen if textured.get(o["id"]) is flag])
     glossy = [o for o in seen if o["kind"] in ("glossy", "metal")]
     err = [abs(est[o["id"]]["roughness"] - o["roughness"]) for o in glossy]
     row("roughness_abs_error", "glossy+metal", float(np.mean(err)) if err else math.nan, len(err))
