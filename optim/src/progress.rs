@@ -18,6 +18,16 @@ pub trait Progress: Sync {
     fn inc(&self, delta: u64) {
         let _ = delta;
     }
+    /// A new phase of the run begins: `name` says what it does and what it counts (e.g. "emission test:
+    /// emitter"), it has `total` steps of which `done` are already done (a resumed run). Positions from here
+    /// on count within the phase, and an ETA is the phase's own: the phases of a fit cost very different
+    /// times per step (an Adam iteration, a model-selection render of every held-out pixel), so a rate
+    /// measured on one says nothing about the next. By default the phase's name becomes the message.
+    fn phase(&self, name: &str, total: u64, done: u64) {
+        self.set_message(name);
+        self.set_length(total);
+        self.set_position(done);
+    }
     /// A short status of the current step (e.g. its loss).
     fn set_message(&self, message: &str) {
         let _ = message;

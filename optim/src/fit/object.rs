@@ -178,8 +178,6 @@ pub fn fit_objects(
     // are reached through the light they reflect onto the ones the photos see (`prior`).
     let every = vec![true; k_count];
     let total = s.iterations + s.refine_steps;
-    // One step per iteration, then one per object in model selection (its lobe trials dominate its cost).
-    progress.set_length(u64::from(total) + k_count as u64);
 
     let mut state = match resume {
         Some(st) => {
@@ -203,7 +201,15 @@ pub fn fit_objects(
             }
         }
     };
-    progress.set_position(u64::from(state.iteration));
+    // Two phases, each with its own progress: the Adam iterations, then the refinement steps.
+    let announce = |iteration: u32| {
+        if iteration < s.iterations {
+            progress.phase("Adam: iteration", u64::from(s.iterations), u64::from(iteration));
+        } else if iteration < total {
+            progress.phase("refinement: step", u64::from(s.refine_steps), u64::from(iteration - s.iterations));
+        }
+    };
+    announce(state.iteration);
 
     // Adam learns the base colours; emission is solved, the lobe parameters are tried in `select`.
     let mut lr_mask = vec![0.0; PER_OBJECT * k_count];
@@ -272,7 +278,14 @@ pub fn fit_objects(
         state.iteration = it;
         state.traced_paths = samples.paths();
         state.discarded_samples = samples.discarded();
-        progress.set_position(u64::from(it));
+        if it <= s.iterations {
+            progress.set_position(u64::from(it));
+        } else {
+            progress.set_position(u64::from(it - s.iterations));
+        }
+        if it == s.iterations {
+            announce(it);
+        }
         let phase_end = it == s.iterations || it == total;
         let stop = progress.stop_requested();
         if (s.checkpoint_every > 0 && it % s.checkpoint_every == 0) || phase_end || stop {
@@ -289,16 +302,16 @@ pub fn fit_objects(
     }
 
     let x = average_refinement(&state, s);
-    progress.set_message("model selection");
-    let (mut x, mut per_object) = select::choose_models(&ctx, s, &sets, &x, &free, progress, u64::from(total))?;
+    let (mut x, mut per_object) = select::choose_models(&ctx, s, &sets, &x, &free, progress)?;
     // The unseen objects' estimates, weighed against the prior by their standard errors (`prior`).
     let prior = UnseenPrior::new(inputs.scene, inputs.objects, &free);
     let unseen = prior.unseen();
     if !unseen.is_empty() {
-        progress.set_message(&format!("unseen objects: {} base colours against their prior", unseen.len()));
+        progress.phase(&format!("unseen objects: standard errors of {} base colours, step", unseen.len()), 1, 0);
         let draw = solve_samples(&sets, s, s.seed, key::UNSEEN_PRIOR);
         let averaged = (s.refine_steps - s.refine_steps / 2) as usize;
         let se = super::prior::standard_errors(&ctx, &x, &draw, s.solve_spp, key::UNSEEN_PRIOR, &unseen, averaged)?;
+        progress.set_position(1);
         for (&k, se) in unseen.iter().zip(se) {
             let p = prior.prior(&x, k);
             let estimate = [x[idx(k, BASE_COLOR)], x[idx(k, BASE_COLOR + 1)], x[idx(k, BASE_COLOR + 2)]];

@@ -62,6 +62,7 @@ impl AveragedSteps {
         x: &mut [f64],
         free: &[bool],
         no_emission: &[bool],
+        progress: &dyn crate::Progress,
     ) -> Result<(), FitError> {
         let opts = solve_options(s, self.unknowns);
         let mut sum = vec![0.0; x.len()];
@@ -86,6 +87,7 @@ impl AveragedSteps {
                 sum.iter_mut().zip(x.iter()).for_each(|(a, v)| *a += v);
                 n_avg += 1.0;
             }
+            progress.set_position(u64::from(step));
         }
         for k in 0..x.len() / PER_OBJECT {
             for p in (BASE_COLOR..BASE_COLOR + 3).chain(EMISSION..EMISSION + 3) {
@@ -94,6 +96,35 @@ impl AveragedSteps {
         }
         Ok(())
     }
+}
+
+/// Pixels per block of [`paired_renders`]: small enough that a house's lobe test (~3·10⁵ pixels at
+/// `holdout_spp`, minutes per render) reports its progress every few seconds, large enough that each block
+/// keeps both cores busy.
+const RENDER_BLOCK: usize = 8192;
+
+/// Two renders of the same pixels with the same random numbers (`key`), in blocks of [`RENDER_BLOCK`]
+/// pixels, one progress step per block and arm in a phase `phase`. Random numbers are keyed by the pixel, so
+/// the blocks give exactly the values of one render of all the pixels.
+fn paired_renders(
+    ctx: &Ctx<'_>,
+    (a, b): (&tracer::Params, &tracer::Params),
+    pixels: &[PixelRef],
+    spp: u32,
+    key: u64,
+    progress: &dyn crate::Progress,
+    phase: &str,
+) -> Result<(Vec<glam::Vec3>, Vec<glam::Vec3>), FitError> {
+    let blocks = pixels.len().div_ceil(RENDER_BLOCK);
+    progress.phase(phase, 2 * blocks as u64, 0);
+    let (mut out_a, mut out_b) = (Vec::with_capacity(pixels.len()), Vec::with_capacity(pixels.len()));
+    for (i, block) in pixels.chunks(RENDER_BLOCK).enumerate() {
+        out_a.extend(ctx.render(a, block, spp, key)?);
+        progress.set_position(2 * i as u64 + 1);
+        out_b.extend(ctx.render(b, block, spp, key)?);
+        progress.set_position(2 * i as u64 + 2);
+    }
+    Ok((out_a, out_b))
 }
 
 fn l1(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -326,8 +357,9 @@ fn glimpse_gain((gain, t): (f64, f64)) -> bool {
     t > T_KEEP && gain > MIN_OWN_GAIN
 }
 
-/// Decides every object's model; returns the final parameters and the decisions. Reports one step per
-/// object to `progress`, at positions `position + 1 ..= position + objects`.
+/// Decides every object's model; returns the final parameters and the decisions. Reports its phases to
+/// `progress`: the lobe searches (one step per object), the lobe test (blocks of its pixels), the closing
+/// re-fits (one step per Gauss–Newton step) and the emission test (one step per emitter).
 pub fn choose_models(
     ctx: &Ctx<'_>,
     s: &ObjectFitSettings,
@@ -335,7 +367,6 @@ pub fn choose_models(
     x_fit: &[f64],
     free: &[bool],
     progress: &dyn crate::Progress,
-    position: u64,
 ) -> Result<(Vec<f64>, Vec<ObjectModel>), FitError> {
     let k_count = x_fit.len() / PER_OBJECT;
     let mut x = x_fit.to_vec();
@@ -383,7 +414,9 @@ pub fn choose_models(
             })
             .collect();
         let mut xt = x.clone();
-        for k in (0..k_count).filter(|&k| free[k]) {
+        let n_free = free.iter().filter(|&&f| f).count();
+        progress.phase("model selection: lobe search, object", n_free as u64, 0);
+        for (done, k) in (0..k_count).filter(|&k| free[k]).enumerate() {
             let samples = profile_samples(ctx, sets, k);
             let mut base = x.clone();
             base[idx(k, SPECULAR)] = TRIAL_SPECULAR;
@@ -403,14 +436,20 @@ pub fn choose_models(
             xt[idx(k, ROUGHNESS)] = best.roughness;
             xt[idx(k, SPECULAR)] = best.specular;
             xt[idx(k, METALLIC)] = best.metallic;
-            progress.set_position(position + k as u64 + 1);
+            progress.set_position(done as u64 + 1);
         }
         // Common random numbers for both renders: the paired differences then carry little path noise.
         let key = key::SELECT_LOBE_TEST;
-        progress.set_message(&format!("lobe test: {} pixels", lobe_test.len()));
         let lobe_pix: Vec<PixelRef> = lobe_test.iter().map(|t| t.pixel).collect();
-        let render = |v: &[f64]| ctx.render(&layout::to_params(v), &lobe_pix, s.holdout_spp, key);
-        let (i_d, i_t) = (render(&x)?, render(&xt)?);
+        let (i_d, i_t) = paired_renders(
+            ctx,
+            (&layout::to_params(&x), &layout::to_params(&xt)),
+            &lobe_pix,
+            s.holdout_spp,
+            key,
+            progress,
+            &format!("model selection: lobe test on {} pixels, block", lobe_pix.len()),
+        )?;
         for k in (0..k_count).filter(|&k| free[k]) {
             let d: Vec<f64> = lobe_test
                 .iter()
@@ -461,7 +500,8 @@ pub fn choose_models(
             let unknowns = if steps == 0 { Unknowns::Emission } else { Unknowns::EmissionAndBaseColor };
             let none = vec![false; k_count];
             let run = AveragedSteps { unknowns, steps: steps.max(1), key: key::SELECT_SPECULAR_STEPS };
-            run.apply(ctx, s, sets, &mut x, free, &none)?;
+            progress.phase("model selection: re-fit with the lobes, step", u64::from(run.steps), 0);
+            run.apply(ctx, s, sets, &mut x, free, &none, progress)?;
         }
     }
 
@@ -475,7 +515,7 @@ pub fn choose_models(
     // and tested with fresh ones.
     let params = layout::to_params(&x);
     let n_emitters = (0..k_count).filter(|&k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).count();
-    progress.set_message(&format!("emission test: {n_emitters} emitters on {} pixels", pix.len()));
+    progress.phase(&format!("model selection: emission test on {} pixels, emitter", pix.len()), n_emitters as u64, 0);
     let pilot_spp = super::emission_solve::basis_spp(s.solve_spp, budget, pix.len());
     let mut emits = vec![false; k_count];
     let mut material_refit = false;
@@ -486,8 +526,10 @@ pub fn choose_models(
             why[k].push("no emission: the L1-penalised emission solve set it to 0".into());
             continue;
         }
+        if tested > 0 {
+            progress.set_position(tested);
+        }
         tested += 1;
-        progress.set_message(&format!("emission test: emitter {tested}/{n_emitters}"));
         let only_k: Vec<bool> = (0..k_count).map(|o| o == k).collect();
         // One column at a time (a column does not depend on which others are rendered): emitters × test pixels
         // of columns would not fit in memory on a house.
@@ -698,6 +740,7 @@ pub fn choose_models(
             ));
         }
     }
+    progress.set_position(tested);
     for k in (0..k_count).filter(|&k| !emits[k]) {
         for c in 0..3 {
             x[idx(k, EMISSION + c)] = 0.0;
@@ -712,7 +755,8 @@ pub fn choose_models(
             steps: s.refine_steps.max(2),
             key: key::SELECT_EMISSION_REFIT,
         };
-        run.apply(ctx, s, sets, &mut x, free, &no_emission)?;
+        progress.phase("model selection: re-fit after a dropped emission, step", u64::from(run.steps), 0);
+        run.apply(ctx, s, sets, &mut x, free, &no_emission, progress)?;
         // The re-fit may take a kept emission to 0 (the solve's bounds): its model then has none.
         for k in 0..k_count {
             if emits[k] && (0..3).all(|c| x[idx(k, EMISSION + c)] == 0.0) {

@@ -353,8 +353,7 @@ pub fn run_rounds(
         )));
     }
     let cfg = inputs.settings;
-    progress.set_length(u64::from(cfg.rounds) + 1);
-    progress.set_position(u64::from(state.rounds_done));
+    progress.phase("round", u64::from(cfg.rounds) + 1, u64::from(state.rounds_done));
     while state.rounds_done <= cfg.rounds {
         let round = state.rounds_done;
         let started = std::time::Instant::now();
