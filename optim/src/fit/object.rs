@@ -224,6 +224,8 @@ pub fn fit_objects(
             let lr = learning_rate(s, it);
             let loss = adam_iteration(&ctx, s, &sets, &mut state.params, &mut state.adam, &lr_mask, lr, u64::from(it))?;
             if s.emission_solve_every > 0 && it % s.emission_solve_every == 0 && it < s.iterations {
+                // The solve costs as much as hundreds of iterations on a large scan: say so while it runs.
+                progress.set_message("emission solve");
                 let key = key::SOLVE + u64::from(it);
                 let samples = solve_samples(&sets, s, s.seed, key);
                 solve_step(
@@ -266,7 +268,6 @@ pub fn fit_objects(
         if !state.params.iter().all(|v| v.is_finite()) {
             return Err(FitError::NonFinite { what: "parameter", iteration: it });
         }
-        progress.set_message(&format!("loss {:.4}", rec.loss));
         tracing::debug!(
             iteration = it,
             phase = %rec.phase,
@@ -274,15 +275,19 @@ pub fn fit_objects(
             discarded_samples = samples.discarded(),
             "fit step"
         );
+        let loss = rec.loss;
         state.history.push(rec);
         state.iteration = it;
         state.traced_paths = samples.paths();
         state.discarded_samples = samples.discarded();
+        // The position first, then the message: a message that ends an emission solve is logged at once, and
+        // its line then carries the rate with the solve in it.
         if it <= s.iterations {
             progress.set_position(u64::from(it));
         } else {
             progress.set_position(u64::from(it - s.iterations));
         }
+        progress.set_message(&format!("loss {loss:.4}"));
         if it == s.iterations {
             announce(it);
         }
