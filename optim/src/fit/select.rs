@@ -526,9 +526,7 @@ pub fn choose_models(
             why[k].push("no emission: the L1-penalised emission solve set it to 0".into());
             continue;
         }
-        if tested > 0 {
-            progress.set_position(tested);
-        }
+        progress.set_position(tested);
         tested += 1;
         let only_k: Vec<bool> = (0..k_count).map(|o| o == k).collect();
         // One column at a time (a column does not depend on which others are rendered): emitters × test pixels

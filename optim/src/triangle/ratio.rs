@@ -197,8 +197,8 @@ impl Evidence<'_> {
 /// every triangle keeps the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen
 /// in a single pixel (no measurable noise) or in fewer than `MIN_INTERIOR` interior pixels (its estimate rests
 /// on pixels shared with neighbours and absorbs their misfit) has no clean evidence of a difference: it takes
-/// m. Unobserved triangles (left to the smoothness solve) and those of emitting objects are unchanged. Only triangles with clean evidence enter m
-/// and τ²; with fewer than 2 of them an object keeps its current value.
+/// m. Unobserved triangles (left to the smoothness solve) and those of emitting objects are unchanged. Only
+/// triangles with clean evidence enter m and τ²; with fewer than 2 of them an object keeps its current value.
 #[must_use]
 pub fn shrink_to_object(
     ratio: &[Vec3],
