@@ -155,6 +155,9 @@ pub struct ObjectModel {
 #[derive(Debug, Clone)]
 pub struct FitOutcome {
     pub params: tracer::Params,
+    /// The diffuse fit before model selection (averaged refinement, emission from the L1-penalised solve):
+    /// continuous in the photos, while a model decision can flip between two nearly equal fits.
+    pub before_selection: tracer::Params,
     pub history: Vec<IterationRecord>,
     pub per_object: Vec<ObjectModel>,
     /// Path samples traced by the whole fit (every value and gradient path of every tracer call, discarded

@@ -307,6 +307,7 @@ pub fn fit_objects(
     }
 
     let x = average_refinement(&state, s);
+    let before_selection = layout::to_params(&x);
     let (mut x, mut per_object) = select::choose_models(&ctx, s, &sets, &x, &free, progress)?;
     // The unseen objects' estimates, weighed against the prior by their standard errors (`prior`).
     let prior = UnseenPrior::new(inputs.scene, inputs.objects, &free);
@@ -350,6 +351,7 @@ pub fn fit_objects(
     }
     Ok(FitOutcome {
         params: layout::to_params(&x),
+        before_selection,
         history: state.history,
         per_object,
         traced_paths,

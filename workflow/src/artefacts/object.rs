@@ -1,6 +1,6 @@
 //! The `object` stage's artefacts and their readers (`crate::stages::object` writes them).
 //!
-//! `photometric.json` (`ipt-photometric/1`, only when the photos' tone-curve exponent was left open by their
+//! `photometric.json` (`ipt-photometric/2`, only when the photos' tone-curve exponent was left open by their
 //! calibration): the per-channel exponent the stage measured against its renders and applied to the prepared
 //! photos; every later stage reads the photos through [`read_prepared`], which applies it too.
 
@@ -22,7 +22,7 @@ pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/1";
 /// The measured tone-curve exponent's file name.
 pub const PHOTOMETRIC_FILE: &str = "photometric.json";
 /// Format tag of `photometric.json`.
-pub const PHOTOMETRIC_FORMAT: &str = "ipt-photometric/1";
+pub const PHOTOMETRIC_FORMAT: &str = "ipt-photometric/2";
 /// Format tag of `history.json`.
 pub const HISTORY_FORMAT: &str = "ipt-object-history/1";
 
@@ -77,10 +77,14 @@ pub struct PhotometricFile {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExponentRound {
-    /// The exponent the fit's photos were raised to.
+    /// The exponent the fit's photos were raised to (every channel).
     pub exponent: f64,
-    /// Its held-out log misfit in the photos' original log units (`optim::photometric`).
-    pub misfit: f64,
+    /// Its held-out log misfit per channel in the photos' original log units (`optim::photometric`).
+    pub misfit: [f64; 3],
+    /// What the search minimises: the median over channels of each channel's misfit relative to its misfit
+    /// in the first trial.
+    pub criterion: f64,
+    /// (Pixel, channel) pairs measured.
     pub terms: usize,
 }
 

@@ -17,16 +17,23 @@ pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>)
     let raised;
     let c = match search {
         Some(p) => {
-            let e = p.exponent[1];
+            let e = p.exponent;
             let _ = writeln!(
                 s,
                 "<p>The photos alone left the tone curve's exponent open; fits of the photos raised to the exponents \
-                 below were compared by their held-out log misfit (in the photos' original log units), and the \
-                 final fit used <b>{e:.3}</b>. Gains, vignetting and response below are raised to it.</p>"
+                 below were compared by their held-out log misfit per channel (in the photos' original log units; \
+                 the search minimises the median over channels of each one relative to its first trial), and the \
+                 final fit used <b>{:.3}</b>. Gains, vignetting and response below are raised to it.</p>",
+                e[1]
             );
-            let _ = writeln!(s, "<table><tr><th>exponent</th><th>held-out log misfit</th></tr>");
+            let _ =
+                writeln!(s, "<table><tr><th>exponent</th><th>misfit R</th><th>G</th><th>B</th><th>relative</th></tr>");
             for r in &p.rounds {
-                let _ = writeln!(s, "<tr><td>{:.3}</td><td>{:.4e}</td></tr>", r.exponent, r.misfit);
+                let _ = writeln!(
+                    s,
+                    "<tr><td>{:.3}</td><td>{:.4e}</td><td>{:.4e}</td><td>{:.4e}</td><td>{:.4}</td></tr>",
+                    r.exponent, r.misfit[0], r.misfit[1], r.misfit[2], r.criterion
+                );
             }
             let _ = writeln!(s, "</table>");
             raised = preprocessed.raised(e);
@@ -171,8 +178,8 @@ mod tests {
             format: PHOTOMETRIC_FORMAT.into(),
             exponent: [2.0; 3],
             rounds: vec![
-                ExponentRound { exponent: 1.0, misfit: 4e-3, terms: 10 },
-                ExponentRound { exponent: 2.0, misfit: 3e-3, terms: 10 },
+                ExponentRound { exponent: 1.0, misfit: [4e-3; 3], criterion: 1.0, terms: 10 },
+                ExponentRound { exponent: 2.0, misfit: [3e-3; 3], criterion: 0.75, terms: 10 },
             ],
         };
         let s = section(&file(true, true), Some(&search));

@@ -108,22 +108,36 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             plan.object.train_pool as usize,
             plan.object.seed,
         );
+        // Every trial is judged with the same random numbers (round 0): the misfits of neighbouring exponents,
+        // a few tenths of a per cent apart, then differ by the fits, not by the judge's render noise. The judge
+        // sees the fit before model selection: a decision that flips between neighbouring exponents (a wall's
+        // faint emission dropped and the scene re-fitted around it) moved a trial's misfit by up to 2×, while
+        // the diffuse fit follows the photos smoothly (docs/photo/self-calibration.md).
         let m = optim::photometric::render_misfit(
             &scene,
             &cameras,
-            &outcome.params,
+            &outcome.before_selection,
             &settings,
             &sets.holdout,
             plan.object.holdout_spp,
             plan.object.seed,
-            rounds.len() as u64,
+            0,
         )?;
         // In the photos' original log units: raising to e scales every log residual by e.
-        let misfit = m.value / (exponent * exponent);
-        rounds.push(ExponentRound { exponent, misfit, terms: m.terms });
-        ctx.note(&format!("tone-curve exponent {exponent:.3}: held-out log misfit {misfit:.3e} ({} terms)", m.terms));
+        let misfit: [f64; 3] = m.channel.map(|v| v / (exponent * exponent));
+        // Each channel's misfit relative to its first trial, and the median of the three: the darkest channel's
+        // log misfit is the largest and the noisiest, so summed it would decide alone, and one channel's fit
+        // can go astray where the other two agree.
+        let first = rounds.first().map_or(misfit, |r| r.misfit);
+        let criterion = optim::photometric::relative_median(misfit, first);
+        rounds.push(ExponentRound { exponent, misfit, criterion, terms: m.terms });
+        ctx.note(&format!(
+            "tone-curve exponent {exponent:.3}: held-out log misfit {} (R / G / B, {} terms), relative {criterion:.4}",
+            misfit.map(|v| format!("{v:.4e}")).join(" / "),
+            m.terms
+        ));
         trial_fits.push((exponent, outcome));
-        let trials: Vec<(f64, f64)> = rounds.iter().map(|r| (r.exponent, r.misfit)).collect();
+        let trials: Vec<(f64, f64)> = rounds.iter().map(|r| (r.exponent, r.criterion)).collect();
         match optim::photometric::next_exponent(&trials) {
             NextExponent::Try(e) => exponent = e,
             NextExponent::Final(e) => {
