@@ -87,10 +87,12 @@ pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>)
         let srgb: Vec<(f64, f64)> =
             (1..r.len()).map(|z| (z as f64 / n, f64::from(ingest::srgb::decode(z as f32 / n as f32)) / mid)).collect();
         let (red, green, blue) = (channel(0), channel(1), channel(2));
+        // In the order of `svg::line_chart`'s colours (blue, red, green, purple), so that each channel is
+        // drawn in its own colour.
         let curves = [
+            Curve { name: "estimated B", points: &blue },
             Curve { name: "estimated R", points: &red },
             Curve { name: "estimated G", points: &green },
-            Curve { name: "estimated B", points: &blue },
             Curve { name: "sRGB", points: &srgb },
         ];
         let _ = writeln!(
