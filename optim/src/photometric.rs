@@ -10,16 +10,14 @@
 //!
 //! [`render_misfit`] renders the held-out pixels twice with independent random numbers and returns the mean
 //! squared difference between log photo and log render less the renders' own Monte Carlo share (half the
-//! mean squared log difference of the two renders, the variance of one render's log), per channel. The caller
-//! divides by the square of the exponent it applied to the photos, so that misfits of differently raised
-//! photos compare in the same (original log) units, and searches the exponent (`workflow::stages::object`;
-//! measurements in docs/photo/self-calibration.md).
-//!
-//! The misfit is also returned per channel: the search takes the median of the channels' relative changes
-//! (`workflow::stages::object`), since the darkest channel's log misfit is the largest and the noisiest.
-//! The calibration relates the channels' exponents to each other, so one exponent is searched for all.
-//! Every trial is judged with the same random numbers: the trials' misfits, a few tenths of a per cent
-//! apart near the minimum, then differ by the fits, not by the judge's render noise.
+//! mean squared log difference of the two renders, the variance of one render's log), in total and per
+//! channel. Its random numbers are the same for every call, so that the trials of a search, whose misfits lie
+//! a few tenths of a per cent apart near the minimum, differ by their fits and not by the judge's render
+//! noise. The caller divides by the square of the exponent it applied to the photos, so that misfits of
+//! differently raised photos compare in the same (original log) units, and searches one exponent for all
+//! channels (the calibration relates the channels' exponents to each other) by [`relative_median`], since the
+//! darkest channel's log misfit is the largest and the noisiest (`workflow::stages::object`; measurements in
+//! docs/photo/self-calibration.md).
 
 use glam::Vec3;
 use tracer::{Camera, Params, PixelRef, Scene, TracerError, TracerSettings};
@@ -37,12 +35,10 @@ pub struct Misfit {
     pub terms: usize,
     /// The same per channel: mean over that channel's usable pixels.
     pub channel: [f64; 3],
-    pub channel_terms: [usize; 3],
 }
 
 /// Renders `samples` (held-out pixels with their targets) twice at `spp` paths with `params`, with
-/// independent random numbers keyed by `round`, and returns the noise-corrected log misfit.
-#[allow(clippy::too_many_arguments)]
+/// independent random numbers (the same ones at every call), and returns the noise-corrected log misfit.
 pub fn render_misfit(
     scene: &Scene,
     cameras: &[Camera],
@@ -51,13 +47,11 @@ pub fn render_misfit(
     samples: &[Sample],
     spp: u32,
     seed: u64,
-    round: u64,
 ) -> Result<Misfit, TracerError> {
     let renderer = tracer::Renderer::new(scene, params, settings)?;
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
-    let k = key::EXPONENT + round;
-    let (r1, _) = renderer.render_pixels(cameras, &pixels, spp, seed, k)?;
-    let (r2, _) = renderer.render_pixels(cameras, &pixels, spp, seed, k ^ key::SECOND_ESTIMATE)?;
+    let (r1, _) = renderer.render_pixels(cameras, &pixels, spp, seed, key::EXPONENT)?;
+    let (r2, _) = renderer.render_pixels(cameras, &pixels, spp, seed, key::EXPONENT ^ key::SECOND_ESTIMATE)?;
     Ok(log_misfit(samples, &r1, &r2))
 }
 
@@ -81,7 +75,6 @@ fn log_misfit(samples: &[Sample], r1: &[Vec3], r2: &[Vec3]) -> Misfit {
         value: mean(fit.iter().sum(), noise.iter().sum(), terms),
         terms,
         channel: std::array::from_fn(|c| mean(fit[c], noise[c], n[c])),
-        channel_terms: n,
     }
 }
 

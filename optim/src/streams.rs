@@ -94,9 +94,8 @@ pub mod key {
     pub const SELECT_PIXEL_ROWS: u64 = SELECT + (5 << 20);
     /// Model selection: the averaged steps of the emission refit.
     pub const SELECT_EMISSION_REFIT: u64 = SELECT + (6 << 20);
-    /// Tone-curve exponent check after a fit ([`crate::photometric`]): its first render at `EXPONENT + round`,
-    /// the second, independent one at `EXPONENT + round` XOR [`SECOND_ESTIMATE`]. The object stage judges
-    /// every trial at round 0, so that the trials share their random numbers.
+    /// Tone-curve exponent check after a fit ([`crate::photometric`]): its first render at `EXPONENT`, the
+    /// second, independent one at `EXPONENT` XOR [`SECOND_ESTIMATE`]; every trial of the search shares them.
     pub const EXPONENT: u64 = SELECT + (7 << 20);
     /// Model selection: object k's emission test, the renders with and without its emission at
     /// `SELECT_EMISSION_TEST + k` (common random numbers; its base-colour column at `SELECT_PIXEL_ROWS + k`).

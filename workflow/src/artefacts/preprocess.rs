@@ -126,24 +126,21 @@ impl CalibrationFile {
         }
     }
 
-    /// The estimates in the units of photos raised to `exponent` per channel (what the object stage applies
-    /// when the photos alone left the tone curve's exponent open): gains and response per channel, the
-    /// vignetting to green's exponent.
+    /// The estimates in the units of photos raised to `exponent` (what the object stage applies when the
+    /// photos alone left the tone curve's exponent open): gains, vignetting and response all raised to it.
     #[must_use]
-    pub fn raised(&self, exponent: [f64; 3]) -> Self {
+    pub fn raised(&self, exponent: f64) -> Self {
         let mut out = self.clone();
         for v in &mut out.views {
-            v.gain = v.gain.map(|g| std::array::from_fn(|c| g[c].powf(exponent[c])));
+            v.gain = v.gain.map(|g| g.map(|x| x.powf(exponent)));
         }
-        // One vignetting per camera serves every channel; it is shown at green's exponent.
-        let green = exponent[1];
         for c in &mut out.cameras {
-            c.beta = c.beta.map(|b| b * green);
-            c.corner = c.corner.powf(green);
-            c.profile = c.profile.iter().map(|v| v.powf(green)).collect();
+            c.beta = c.beta.map(|b| b * exponent);
+            c.corner = c.corner.powf(exponent);
+            c.profile = c.profile.iter().map(|v| v.powf(exponent)).collect();
         }
-        let e = exponent.map(|x| x as f32);
-        out.response = out.response.map(|r| r.into_iter().map(|v| std::array::from_fn(|c| v[c].powf(e[c]))).collect());
+        let e = exponent as f32;
+        out.response = out.response.map(|r| r.into_iter().map(|v| v.map(|x| x.powf(e))).collect());
         out
     }
 

@@ -17,14 +17,13 @@ pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>)
     let raised;
     let c = match search {
         Some(p) => {
-            let e = p.exponent;
+            let e = p.exponent[1];
             let _ = writeln!(
                 s,
                 "<p>The photos alone left the tone curve's exponent open; fits of the photos raised to the exponents \
                  below were compared by their held-out log misfit per channel (in the photos' original log units; \
                  the search minimises the median over channels of each one relative to its first trial), and the \
-                 final fit used <b>{:.3}</b>. Gains, vignetting and response below are raised to it.</p>",
-                e[1]
+                 final fit used <b>{e:.3}</b>. Gains, vignetting and response below are raised to it.</p>"
             );
             let _ =
                 writeln!(s, "<table><tr><th>exponent</th><th>misfit R</th><th>G</th><th>B</th><th>relative</th></tr>");

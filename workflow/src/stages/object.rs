@@ -108,11 +108,10 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             plan.object.train_pool as usize,
             plan.object.seed,
         );
-        // Every trial is judged with the same random numbers (round 0): the misfits of neighbouring exponents,
-        // a few tenths of a per cent apart, then differ by the fits, not by the judge's render noise. The judge
-        // sees the fit before model selection: a decision that flips between neighbouring exponents (a wall's
-        // faint emission dropped and the scene re-fitted around it) moved a trial's misfit by up to 2×, while
-        // the diffuse fit follows the photos smoothly (docs/photo/self-calibration.md).
+        // Every trial is judged with the same random numbers (`render_misfit`). The judge sees the fit before
+        // model selection: a decision that flips between neighbouring exponents (faint emissions dropped and
+        // the scene re-fitted around them) put a trial's misfit at 1.4–2.8× that of its neighbours' in every
+        // channel, while the diffuse fit follows the photos smoothly (docs/photo/self-calibration.md).
         let m = optim::photometric::render_misfit(
             &scene,
             &cameras,
@@ -121,7 +120,6 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             &sets.holdout,
             plan.object.holdout_spp,
             plan.object.seed,
-            0,
         )?;
         // In the photos' original log units: raising to e scales every log residual by e.
         let misfit: [f64; 3] = m.channel.map(|v| v / (exponent * exponent));

@@ -29,7 +29,7 @@ const NOISE_FLOOR: f64 = 0.01;
 /// codes 32..128), so most knots hold few rows: at 0.1 the curve bent at the ends of each band, and after the
 /// best power per channel it still linearised the photos' codes with an rms error of 4–17 % (three renders of
 /// the fixture); at 10 the error is 0.1–1.4 %, while the exposure-bracket cases, whose codes span the whole
-/// range, do not change (Memorial against OpenCV: 0.024 → 0.022; the synthetic curves: within 0.001)
+/// range, do not change (Memorial against OpenCV: 0.024 → 0.022; the synthetic curves: within 0.002)
 /// (docs/photo/self-calibration.md, "Smoothness of the estimated response").
 const SMOOTHNESS: f64 = 10.0;
 /// Floor of the hat factor of the smoothness weight, so that knots beyond the last observation are still tied

@@ -74,15 +74,16 @@ fn matched_curves(theta: &[f64], support: &[f64], c: usize) -> Option<f64> {
 /// regress on green's with slope 1) was off by up to 6 %, because 18 photos' white balances correlate with
 /// their exposures by chance (docs/photo/self-calibration.md, "Relating the channels"). The gains' regression
 /// remains the fallback when two channels share too few codes.
-fn channel_ratios(theta: &[f64], layout: &Layout, opts: &CalibrationOptions, support: &[f64]) -> [f64; 3] {
+fn channel_ratios(theta: &[f64], layout: &Layout, opts: &CalibrationOptions, rows: (&Problem, &Solution)) -> [f64; 3] {
     let h = |c: usize| &theta[c * KNOTS..(c + 1) * KNOTS];
     let prior: [f64; 3] = std::array::from_fn(|c| response::shape_prior_scale(&[h(c)]));
     let from_prior = std::array::from_fn(|c| prior[c] / prior[1]);
     if layout.per_photo != 3 {
         return [1.0; 3];
     }
+    let support = knot_support(rows.0, rows.1);
     let matched: [Option<f64>; 3] =
-        std::array::from_fn(|c| if c == 1 { Some(1.0) } else { matched_curves(theta, support, c) });
+        std::array::from_fn(|c| if c == 1 { Some(1.0) } else { matched_curves(theta, &support, c) });
     if matched.iter().all(Option::is_some) {
         return matched.map(|m| m.unwrap_or(1.0));
     }
@@ -118,7 +119,7 @@ pub(super) fn finish(
     let (mut scale, mut gamma_source, mut lattice_misfit, mut curve) = ([1.0; 3], GammaSource::Given, f64::NAN, None);
     let mut gamma_reliable = true;
     if opts.response == ResponseMode::Estimate {
-        let rho = channel_ratios(theta, layout, opts, &knot_support(problem, sol));
+        let rho = channel_ratios(theta, layout, opts, (problem, sol));
         let scaled: Vec<Vec<f64>> =
             (0..3).map(|c| theta[c * KNOTS..(c + 1) * KNOTS].iter().map(|v| v * rho[c]).collect()).collect();
         let prior = response::shape_prior_scale(&[&scaled[0], &scaled[1], &scaled[2]]);
