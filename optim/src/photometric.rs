@@ -13,16 +13,18 @@
 //! mean squared log difference of the two renders, the variance of one render's log), in total and per
 //! channel. Its random numbers are the same for every call, so that the trials of a search, whose misfits lie
 //! a few tenths of a per cent apart near the minimum, differ by their fits and not by the judge's render
-//! noise. The caller divides by the square of the exponent it applied to the photos, so that misfits of
-//! differently raised photos compare in the same (original log) units, and searches one exponent for all
-//! channels (the calibration relates the channels' exponents to each other) by [`relative_median`], since the
-//! darkest channel's log misfit is the largest and the noisiest (`workflow::stages::object`; measurements in
-//! docs/photo/self-calibration.md).
+//! noise. [`trial_misfit`] judges one trial: it raises the held-out targets to the trial's exponent and divides
+//! the misfit by the exponent's square, so that misfits of differently raised photos compare in the same
+//! (original log) units. The caller searches one exponent for all channels (the calibration relates the
+//! channels' exponents to each other) by [`relative_median`], since the darkest channel's log misfit is the
+//! largest and the noisiest, and judges comparison fits with a fixed set of lights
+//! (`optim::fit::FitMode::Comparison`), so that no faint emission absorbs a wrong exponent
+//! (`workflow::stages::object`; measurements in docs/photo/self-calibration.md).
 
 use glam::Vec3;
 use tracer::{Camera, Params, PixelRef, Scene, TracerError, TracerSettings};
 
-use crate::fit::pixels::Sample;
+use crate::fit::pixels::{PixelSets, Sample};
 use crate::streams::key;
 
 /// The held-out misfit of a fit (see the module docs).
@@ -55,6 +57,31 @@ pub fn render_misfit(
     Ok(log_misfit(samples, &r1, &r2))
 }
 
+/// The misfit of one trial of the search: `params` fitted to the photos raised to `exponent`, judged on
+/// `holdout` (targets from the photos as given, raised here as `workflow`'s `raise_to_exponent` raises the
+/// photos) by [`render_misfit`], and returned in the photos' original log units (raising to e scales every
+/// log residual by e, so each mean square is divided by e²).
+#[allow(clippy::too_many_arguments)]
+pub fn trial_misfit(
+    scene: &Scene,
+    cameras: &[Camera],
+    params: &Params,
+    settings: &TracerSettings,
+    holdout: &[Sample],
+    exponent: f64,
+    spp: u32,
+    seed: u64,
+) -> Result<Misfit, TracerError> {
+    let e = exponent as f32;
+    let raised: Vec<Sample> = holdout
+        .iter()
+        .map(|s| Sample { target: s.target.map(|v| if v > 0.0 { v.powf(e) } else { v }), ..*s })
+        .collect();
+    let m = render_misfit(scene, cameras, params, settings, &raised, spp, seed)?;
+    let scale = exponent * exponent;
+    Ok(Misfit { value: m.value / scale, terms: m.terms, channel: m.channel.map(|v| v / scale) })
+}
+
 /// The noise-corrected log misfit of photos against two independent renders.
 fn log_misfit(samples: &[Sample], r1: &[Vec3], r2: &[Vec3]) -> Misfit {
     let (mut fit, mut noise, mut n) = ([0.0; 3], [0.0; 3], [0usize; 3]);
@@ -76,6 +103,63 @@ fn log_misfit(samples: &[Sample], r1: &[Vec3], r2: &[Vec3]) -> Misfit {
         terms,
         channel: std::array::from_fn(|c| mean(fit[c], noise[c], n[c])),
     }
+}
+
+/// A whole fit's emitter is a light for the comparison fits when its emission is at least this share of the
+/// radiance the photos hold on it: what a photo holds of a lamp, a screen or a window is mostly what it emits,
+/// while an emission a fit leaves on a wall or a box to absorb a wrong exponent is a fraction of what that
+/// object reflects. Half sits between the two wherever neither is a borderline case (measured shares in
+/// docs/photo/self-calibration.md, "Comparison fits").
+pub const LIGHT_SHARE: f64 = 0.5;
+
+/// One emitter of a whole fit, as [`comparison_emitters`] judged it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmitterShare {
+    /// The object's index.
+    pub object: usize,
+    /// Its emission (mean over channels) over the mean radiance of its training pixels (mean over channels);
+    /// `None` when the photos do not measure it (fewer training pixels than a fit's free object needs).
+    pub share: Option<f64>,
+    /// Whether the comparison fits let it emit.
+    pub light: bool,
+}
+
+/// Which objects the comparison fits of the search let emit, from a whole fit's `emission` and its pixel
+/// `sets`: every emitter the photos do not measure (a light no photo sees is what the fit exists to find, and
+/// no photo compares its emission with what it reflects), and every measured emitter whose share is at least
+/// [`LIGHT_SHARE`]. When that leaves no object, every object may emit (the comparison fits then light the scene
+/// as the whole fit's L1-penalised solve does). Also returns each emitter's share, for the record.
+#[must_use]
+pub fn comparison_emitters(emission: &[Vec3], sets: &PixelSets) -> (Vec<bool>, Vec<EmitterShare>) {
+    let mut sum = vec![0.0f64; emission.len()];
+    let mut n = vec![0usize; emission.len()];
+    for t in &sets.train {
+        if let Some(k) = t.object.map(|k| k as usize).filter(|&k| k < emission.len()) {
+            if t.target.is_finite() {
+                sum[k] += f64::from(t.target.element_sum()) / 3.0;
+                n[k] += 1;
+            }
+        }
+    }
+    let emitters: Vec<EmitterShare> = emission
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| e.max_element() > 0.0)
+        .map(|(k, e)| {
+            let emitted = f64::from(e.element_sum()) / 3.0;
+            let share =
+                (n[k] >= crate::fit::solve::MIN_PIXELS && sum[k] > 0.0).then(|| emitted / (sum[k] / n[k] as f64));
+            EmitterShare { object: k, share, light: share.is_none_or(|s| s >= LIGHT_SHARE) }
+        })
+        .collect();
+    let mut lights = vec![false; emission.len()];
+    for e in emitters.iter().filter(|e| e.light) {
+        lights[e.object] = true;
+    }
+    if !lights.contains(&true) {
+        lights = vec![true; emission.len()];
+    }
+    (lights, emitters)
 }
 
 /// What the exponent search minimises: the median over channels of each channel's misfit relative to
@@ -240,5 +324,42 @@ mod tests {
         let m = log_misfit(&samples, &[Vec3::ONE], &[Vec3::ONE]);
         assert_eq!(m.terms, 0);
         assert!(m.value.is_nan() && m.channel.iter().all(|v| v.is_nan()), "{m:?}");
+    }
+
+    /// A room: a wall (object 0) photographed at radiance 0.3 with a faint emission 0.02 left on it, a lamp
+    /// (object 1) photographed at 4.0 emitting 3.6, a light no photo sees (object 2) and a box that emits
+    /// nothing (object 3, seen).
+    fn room(wall_emission: f32) -> (Vec<Vec3>, PixelSets) {
+        let mut sets = PixelSets::default();
+        for (object, radiance, count) in [(0u32, 0.3f32, 100u32), (1, 4.0, 40), (2, 1.0, 3), (3, 0.2, 50)] {
+            for x in 0..count {
+                let pixel = PixelRef { view: object, x, y: 0 };
+                sets.train.push(Sample { pixel, target: Vec3::splat(radiance), object: Some(object) });
+            }
+        }
+        let emission = vec![Vec3::splat(wall_emission), Vec3::splat(3.6), Vec3::new(8.0, 7.0, 5.0), Vec3::ZERO];
+        (emission, sets)
+    }
+
+    #[test]
+    fn comparison_fits_keep_lights_and_drop_glows() {
+        let (emission, sets) = room(0.02);
+        let (lights, shares) = comparison_emitters(&emission, &sets);
+        assert_eq!(lights, [false, true, true, false]);
+        assert_eq!(shares.iter().map(|e| e.object).collect::<Vec<_>>(), [0, 1, 2]);
+        assert!((shares[0].share.unwrap() - 0.02 / 0.3).abs() < 1e-6);
+        assert!((shares[1].share.unwrap() - 0.9).abs() < 1e-6);
+        assert_eq!(shares[2].share, None, "3 training pixels do not measure it");
+        // A wall that emits as much as half of what it shows is a light (a backlit panel).
+        let (emission, sets) = room(0.15);
+        assert_eq!(comparison_emitters(&emission, &sets).0, [true, true, true, false]);
+    }
+
+    #[test]
+    fn with_no_light_every_object_may_emit() {
+        let (mut emission, sets) = room(0.02);
+        emission[1] = Vec3::ZERO;
+        emission[2] = Vec3::ZERO;
+        assert_eq!(comparison_emitters(&emission, &sets).0, [true; 4]);
     }
 }

@@ -136,6 +136,7 @@ pub fn timed_point(
         objects: &objects,
         settings: &setup.object,
         tracer: &tracer_settings,
+        mode: optim::fit::FitMode::Full,
     };
     let load_avg_1m = workflow::process_stats::load_average_1m().unwrap_or(f64::NAN);
     let cpu_before = workflow::process_stats::cpu_time_s().unwrap_or(f64::NAN);

@@ -365,6 +365,19 @@ pub fn fit_resumable(
     resume: Option<optim::fit::FitState>,
     on_checkpoint: &mut dyn FnMut(&optim::fit::FitState) -> Result<(), optim::fit::FitError>,
 ) -> Result<optim::fit::FitOutcome, optim::fit::FitError> {
+    fit_in_mode(built, images, settings, optim::fit::FitMode::Full, resume, on_checkpoint)
+}
+
+/// [`fit_resumable`] in a given [`optim::fit::FitMode`] (a comparison fit with a fixed set of lights, or the whole
+/// fit).
+pub fn fit_in_mode(
+    built: &BuiltScene,
+    images: &[ingest::photo::LinearImage],
+    settings: &optim::fit::ObjectFitSettings,
+    mode: optim::fit::FitMode<'_>,
+    resume: Option<optim::fit::FitState>,
+    on_checkpoint: &mut dyn FnMut(&optim::fit::FitState) -> Result<(), optim::fit::FitError>,
+) -> Result<optim::fit::FitOutcome, optim::fit::FitError> {
     let objects = fit_objects(built);
     let inputs = optim::fit::FitInputs {
         scene: &built.scene,
@@ -373,6 +386,7 @@ pub fn fit_resumable(
         objects: &objects,
         settings,
         tracer: &built.settings,
+        mode,
     };
     optim::fit::fit_objects(&inputs, resume, on_checkpoint, &optim::NoProgress)
 }

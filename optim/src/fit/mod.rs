@@ -34,6 +34,8 @@
 //!    they reflect onto the objects the photos see; each is then weighed against a stated prior (the
 //!    area-weighted distribution of the observed objects of its category, or of all) by its standard error.
 //!
+//! A comparison fit ([`FitMode::Comparison`]) runs steps 1–3 only, with emission on a given set of objects.
+//!
 //! The decision, its reason and `constrained` are in [`ObjectModel`] and go to `materials.json` (`model`,
 //! `why`, `constrained`).
 //!
@@ -94,6 +96,21 @@ pub struct FitInputs<'a> {
     pub objects: &'a [ObjectDesc],
     pub settings: &'a ObjectFitSettings,
     pub tracer: &'a tracer::TracerSettings,
+    /// The whole fit, or a comparison fit (see [`FitMode`]).
+    pub mode: FitMode<'a>,
+}
+
+/// What a fit estimates.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum FitMode<'a> {
+    /// Steps 1–5 above: every object the photos see may emit, and model selection decides.
+    #[default]
+    Full,
+    /// Steps 1–3 only, with emission allowed only on the objects with `emitters[k]` (others held at 0): a fit
+    /// that compares how well different inputs (photos raised to different exponents) are explained by one
+    /// fixed set of lights, with no faint emissions free to absorb what the inputs get wrong and no model
+    /// decision that can flip between two inputs. Its result is the averaged refinement, every object diffuse.
+    Comparison { emitters: &'a [bool] },
 }
 
 /// One step of the fit's trajectory.
@@ -155,9 +172,6 @@ pub struct ObjectModel {
 #[derive(Debug, Clone)]
 pub struct FitOutcome {
     pub params: tracer::Params,
-    /// The diffuse fit before model selection (averaged refinement, emission from the L1-penalised solve):
-    /// continuous in the photos, while a model decision can flip between two nearly equal fits.
-    pub before_selection: tracer::Params,
     pub history: Vec<IterationRecord>,
     pub per_object: Vec<ObjectModel>,
     /// Path samples traced by the whole fit (every value and gradient path of every tracer call, discarded

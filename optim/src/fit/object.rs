@@ -2,7 +2,7 @@
 //! Gauss–Newton refinement, model selection. See the module docs of [`crate::fit`].
 
 use super::adam::{AdamConfig, AdamState};
-use super::emission_solve::{Unknowns, solve_step};
+use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::jacobian::Ctx;
 use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
 use super::pixels::{self, PixelSets};
@@ -10,7 +10,10 @@ use super::prior::UnseenPrior;
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
 use super::solve::{MIN_PIXELS, solve_options, solve_samples};
-use super::{FitError, FitInputs, FitOutcome, FitState, IterationRecord, ObjectFitSettings, select, step_check};
+use super::{
+    FitError, FitInputs, FitMode, FitOutcome, FitState, IterationRecord, ObjectFitSettings, ObjectModel, select,
+    step_check,
+};
 use crate::streams::{draw, key};
 use glam::Vec3;
 use tracer::PixelRef;
@@ -55,6 +58,14 @@ fn validate(inputs: &FitInputs<'_>) -> Result<(), FitError> {
     }
     if !(0.0..0.5).contains(&s.holdout_fraction) {
         return Err(FitError::Setting { key: "holdout_fraction", message: "must lie in [0, 0.5)".into() });
+    }
+    if let FitMode::Comparison { emitters } = inputs.mode {
+        if emitters.len() != inputs.objects.len() {
+            return Err(FitError::Setting {
+                key: "emitters",
+                message: format!("{} flags for {} objects", emitters.len(), inputs.objects.len()),
+            });
+        }
     }
     Ok(())
 }
@@ -177,6 +188,11 @@ pub fn fit_objects(
     // Every base colour is an unknown of Adam and of the refinement, also those of objects no photo sees: they
     // are reached through the light they reflect onto the ones the photos see (`prior`).
     let every = vec![true; k_count];
+    // A comparison fit holds every object outside its emitter set at zero emission in every solve.
+    let no_emission: Vec<bool> = match inputs.mode {
+        FitMode::Full => vec![false; k_count],
+        FitMode::Comparison { emitters } => emitters.iter().map(|&e| !e).collect(),
+    };
     let total = s.iterations + s.refine_steps;
 
     let mut state = match resume {
@@ -190,7 +206,7 @@ pub fn fit_objects(
             let mut x = layout::initial(k_count);
             let opts = solve_options(s, Unknowns::Emission);
             let samples = solve_samples(&sets, s, s.seed, key::SOLVE);
-            solve_step(&ctx, &mut x, &samples, s.solve_spp, key::SOLVE, &free, &opts)?;
+            solve_step_pinned(&ctx, &mut x, &samples, s.solve_spp, key::SOLVE, &free, &no_emission, &opts)?;
             FitState {
                 iteration: 0,
                 adam: AdamState::new(x.len(), AdamConfig::default()),
@@ -228,13 +244,14 @@ pub fn fit_objects(
                 progress.set_message("emission solve");
                 let key = key::SOLVE + u64::from(it);
                 let samples = solve_samples(&sets, s, s.seed, key);
-                solve_step(
+                solve_step_pinned(
                     &ctx,
                     &mut state.params,
                     &samples,
                     s.solve_spp,
                     key,
                     &free,
+                    &no_emission,
                     &solve_options(s, Unknowns::Emission),
                 )?;
             }
@@ -244,7 +261,8 @@ pub fn fit_objects(
             let samples = solve_samples(&sets, s, s.seed, key);
             let opts = solve_options(s, Unknowns::EmissionAndBaseColor);
             let start = state.params.clone();
-            let loss = solve_step(&ctx, &mut state.params, &samples, s.solve_spp, key, &every, &opts)?;
+            let loss =
+                solve_step_pinned(&ctx, &mut state.params, &samples, s.solve_spp, key, &every, &no_emission, &opts)?;
             let check = step_check::check_step(
                 &ctx,
                 &start,
@@ -307,11 +325,25 @@ pub fn fit_objects(
     }
 
     let x = average_refinement(&state, s);
-    let before_selection = layout::to_params(&x);
-    let (mut x, mut per_object) = select::choose_models(&ctx, s, &sets, &x, &free, progress)?;
+    let (mut x, mut per_object) = match inputs.mode {
+        FitMode::Full => select::choose_models(&ctx, s, &sets, &x, &free, progress)?,
+        FitMode::Comparison { .. } => {
+            let per_object = (0..k_count)
+                .map(|k| {
+                    let emits = (0..3).any(|c| x[idx(k, EMISSION + c)] > 0.0);
+                    ObjectModel {
+                        model: if emits { "diffuse+emission" } else { "diffuse" }.into(),
+                        why: "comparison fit: emission on the given objects only, no model selection".into(),
+                        constrained: free[k],
+                    }
+                })
+                .collect();
+            (x, per_object)
+        }
+    };
     // The unseen objects' estimates, weighed against the prior by their standard errors (`prior`).
     let prior = UnseenPrior::new(inputs.scene, inputs.objects, &free);
-    let unseen = prior.unseen();
+    let unseen = if inputs.mode == FitMode::Full { prior.unseen() } else { Vec::new() };
     if !unseen.is_empty() {
         progress.phase(&format!("unseen objects: standard errors of {} base colours, step", unseen.len()), 1, 0);
         let draw = solve_samples(&sets, s, s.seed, key::UNSEEN_PRIOR);
@@ -351,7 +383,6 @@ pub fn fit_objects(
     }
     Ok(FitOutcome {
         params: layout::to_params(&x),
-        before_selection,
         history: state.history,
         per_object,
         traced_paths,

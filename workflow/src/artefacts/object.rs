@@ -1,6 +1,6 @@
 //! The `object` stage's artefacts and their readers (`crate::stages::object` writes them).
 //!
-//! `photometric.json` (`ipt-photometric/2`, only when the photos' tone-curve exponent was left open by their
+//! `photometric.json` (`ipt-photometric/3`, only when the photos' tone-curve exponent was left open by their
 //! calibration): the per-channel exponent the stage measured against its renders and applied to the prepared
 //! photos; every later stage reads the photos through [`read_prepared`], which applies it too.
 
@@ -22,7 +22,7 @@ pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/1";
 /// The measured tone-curve exponent's file name.
 pub const PHOTOMETRIC_FILE: &str = "photometric.json";
 /// Format tag of `photometric.json`.
-pub const PHOTOMETRIC_FORMAT: &str = "ipt-photometric/2";
+pub const PHOTOMETRIC_FORMAT: &str = "ipt-photometric/3";
 /// Format tag of `history.json`.
 pub const HISTORY_FORMAT: &str = "ipt-object-history/1";
 
@@ -69,8 +69,23 @@ pub struct PhotometricFile {
     pub format: String,
     /// Applied as `value^exponent[c]` to every prepared photo.
     pub exponent: [f64; 3],
+    /// The first whole fit's emitters and which of them the trials' comparison fits let emit.
+    pub emitters: Vec<SearchEmitter>,
     /// One entry per trial fit, in the order tried.
     pub rounds: Vec<ExponentRound>,
+}
+
+/// One emitter of the first whole fit, as the exponent search judged it (`optim::photometric::comparison_emitters`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchEmitter {
+    pub id: i64,
+    pub label: String,
+    /// Its emission over the radiance the photos hold on it (means over channels); `null` when the photos do
+    /// not measure it.
+    pub share: Option<f64>,
+    /// Whether the comparison fits let it emit.
+    pub light: bool,
 }
 
 /// One trial of the exponent search.

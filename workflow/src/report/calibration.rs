@@ -18,12 +18,21 @@ pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>)
     let c = match search {
         Some(p) => {
             let e = p.exponent[1];
+            let lights: Vec<String> = p.emitters.iter().filter(|e| e.light).map(|e| escape(&e.label)).collect();
+            let glows: Vec<String> = p.emitters.iter().filter(|e| !e.light).map(|e| escape(&e.label)).collect();
             let _ = writeln!(
                 s,
-                "<p>The photos alone left the tone curve's exponent open; fits of the photos raised to the exponents \
-                 below were compared by their held-out log misfit per channel (in the photos' original log units; \
-                 the search minimises the median over channels of each one relative to its first trial), and the \
-                 final fit used <b>{e:.3}</b>. Gains, vignetting and response below are raised to it.</p>"
+                "<p>The photos alone left the tone curve's exponent open; diffuse fits of the photos raised to the \
+                 exponents below, with emission only on the first whole fit's lights ({}{}), were compared by their \
+                 held-out log misfit per channel (in the photos' original log units; the search minimises the \
+                 median over channels of each one relative to its first trial), and the final fit used \
+                 <b>{e:.3}</b>. Gains, vignetting and response below are raised to it.</p>",
+                if lights.is_empty() { "none: every object could emit".to_owned() } else { lights.join(", ") },
+                if glows.is_empty() {
+                    String::new()
+                } else {
+                    format!("; left out as faint emissions: {}", glows.join(", "))
+                }
             );
             let _ =
                 writeln!(s, "<table><tr><th>exponent</th><th>misfit R</th><th>G</th><th>B</th><th>relative</th></tr>");
@@ -174,10 +183,14 @@ mod tests {
 
     #[test]
     fn a_searched_exponent_raises_what_is_shown_and_lists_its_trials() {
-        use crate::artefacts::object::{ExponentRound, PHOTOMETRIC_FORMAT};
+        use crate::artefacts::object::{ExponentRound, PHOTOMETRIC_FORMAT, SearchEmitter};
         let search = PhotometricFile {
             format: PHOTOMETRIC_FORMAT.into(),
             exponent: [2.0; 3],
+            emitters: vec![
+                SearchEmitter { id: 7, label: "lamp".into(), share: Some(0.9), light: true },
+                SearchEmitter { id: 3, label: "wall".into(), share: Some(0.05), light: false },
+            ],
             rounds: vec![
                 ExponentRound { exponent: 1.0, misfit: [4e-3; 3], criterion: 1.0, terms: 10 },
                 ExponentRound { exponent: 2.0, misfit: [3e-3; 3], criterion: 0.75, terms: 10 },
@@ -187,5 +200,6 @@ mod tests {
         assert!(s.contains("<b>2.000</b>"), "{s}");
         assert!(s.contains("0.2500"), "gain 0.5 raised to 2: {s}");
         assert!(s.contains("4.0000e-3") && s.contains("3.0000e-3"), "{s}");
+        assert!(s.contains("(lamp; left out as faint emissions: wall)"), "{s}");
     }
 }

@@ -21,14 +21,14 @@ use crate::artefacts::checkpoint;
 use crate::artefacts::ingest::Ingested;
 use crate::artefacts::object::{
     CHECKPOINT_FORMAT, ExponentRound, HISTORY_FILE, HISTORY_FORMAT, HistoryFile, MATERIALS_FILE, PHOTOMETRIC_FILE,
-    PHOTOMETRIC_FORMAT, PhotometricFile,
+    PHOTOMETRIC_FORMAT, PhotometricFile, SearchEmitter,
 };
 use crate::artefacts::preprocess::{CalibrationFile, Prepared, raise_to_exponent};
 use crate::atomic_file::write_json_atomic;
 use crate::config::profile_name;
 use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
 use crate::stage_contract::{StageContext, StageError};
-use optim::fit::{FitError, FitInputs, FitState, ObjectDesc};
+use optim::fit::{FitError, FitInputs, FitMode, FitOutcome, FitState, ObjectDesc};
 use optim::photometric::NextExponent;
 
 /// The exponent is judged on held-out pixels; a config with no held-out pixels still gets this share.
@@ -53,21 +53,18 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let calibration = CalibrationFile::read(&plan.output)?;
     // The photos' calibration may leave the tone curve's exponent open; linear light transport then decides it.
     let search = calibration.as_ref().is_some_and(|c| !c.exponent_reliable);
-    let mut exponent = 1.0f64;
-    let mut rounds: Vec<ExponentRound> = Vec::new();
-    let mut last_try = true;
-    // Each trial's fit, so that a search ending on an exponent it already tried reuses that fit (same photos,
-    // same seed: the final fit would repeat it exactly).
-    let mut trial_fits: Vec<(f64, optim::fit::FitOutcome)> = Vec::new();
-    let outcome = loop {
-        let corrected;
+    // One fit of the photos raised to `exponent`. Only the first whole fit checkpoints: the others fit
+    // re-exponentiated photos, which a checkpoint of the first must never resume (the first replays
+    // deterministically on a resumed run).
+    let fit_at = |exponent: f64, mode: FitMode<'_>, checkpointed: bool| -> Result<FitOutcome, StageError> {
+        let raised;
         let images = if exponent == 1.0 {
             &prepared.images
         } else {
-            let mut raised = prepared.images.clone();
-            raise_to_exponent(&mut raised, [exponent; 3]);
-            corrected = raised;
-            &corrected
+            let mut copy = prepared.images.clone();
+            raise_to_exponent(&mut copy, [exponent; 3]);
+            raised = copy;
+            &raised
         };
         let inputs = FitInputs {
             scene: &scene,
@@ -76,81 +73,121 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             objects: &objects,
             settings: &plan.object,
             tracer: &settings,
+            mode,
         };
-        // Only the first fit checkpoints: later ones fit re-exponentiated photos, which a checkpoint of the
-        // first must never resume (the first replays deterministically on a resumed run).
-        let first = rounds.is_empty() && last_try;
-        let resume: Option<FitState> = if first { checkpoint::resumable(ctx, CHECKPOINT_FORMAT) } else { None };
+        let resume: Option<FitState> = if checkpointed { checkpoint::resumable(ctx, CHECKPOINT_FORMAT) } else { None };
         if let Some(state) = &resume {
             ctx.note(&format!("resuming from the checkpoint at iteration {}", state.iteration));
         }
         let mut on_checkpoint = |state: &FitState| -> Result<(), FitError> {
-            if first {
+            if checkpointed {
                 checkpoint::write(ctx, CHECKPOINT_FORMAT, state).map_err(|e| FitError::Checkpoint(e.to_string()))?;
                 tracing::debug!(iteration = state.iteration, "checkpoint written");
             }
             Ok(())
         };
-        let label = if search { format!("fit (photos ^ {exponent:.3})") } else { "fit".to_owned() };
+        let label = match (search, mode) {
+            (false, _) => "fit".to_owned(),
+            (true, FitMode::Full) => format!("fit (photos ^ {exponent:.3})"),
+            (true, FitMode::Comparison { .. }) => format!("comparison fit (photos ^ {exponent:.3})"),
+        };
         let progress = ctx.progress(&label, u64::from(plan.object.iterations));
-        let outcome = optim::fit::fit_objects(&inputs, resume, &mut on_checkpoint, progress.as_ref())?;
-        drop(progress);
-        if !search || !last_try {
-            break outcome;
-        }
+        Ok(optim::fit::fit_objects(&inputs, resume, &mut on_checkpoint, progress.as_ref())?)
+    };
+    let first = fit_at(1.0, FitMode::Full, true)?;
+    let mut exponent = 1.0f64;
+    let mut search_record = None;
+    let outcome = if search {
+        // The trials are comparison fits with the first whole fit's lights only. With every object free to
+        // emit, the L1-penalised solve leaves faint emissions on walls, more of them the lower the exponent (7
+        // at 1.0, 1 at 1.56 on the consumer-camera fixture), and such a glow flattens compressed contrast as
+        // higher albedos do, which biased the judge low; model selection, which removes them at the right
+        // exponent, keeps some at a wrong one and flips between neighbouring exponents. So the emitters whose
+        // emission is a small share of what the photos show of them are left out
+        // (docs/photo/self-calibration.md, "Comparison fits").
         let sets = optim::fit::pixels::collect(
             &scene,
             &cameras,
-            images,
+            &prepared.images,
             objects.len(),
             plan.object.holdout_fraction.max(EXPONENT_HOLDOUT_FRACTION),
             plan.object.holdout_pixels as usize,
             plan.object.train_pool as usize,
             plan.object.seed,
         );
-        // Every trial is judged with the same random numbers (`render_misfit`). The judge sees the fit before
-        // model selection: a decision that flips between neighbouring exponents (faint emissions dropped and
-        // the scene re-fitted around them) put a trial's misfit at 1.4–2.8× that of its neighbours' in every
-        // channel, while the diffuse fit follows the photos smoothly (docs/photo/self-calibration.md).
-        let m = optim::photometric::render_misfit(
-            &scene,
-            &cameras,
-            &outcome.before_selection,
-            &settings,
-            &sets.holdout,
-            plan.object.holdout_spp,
-            plan.object.seed,
-        )?;
-        // In the photos' original log units: raising to e scales every log residual by e.
-        let misfit: [f64; 3] = m.channel.map(|v| v / (exponent * exponent));
-        // Each channel's misfit relative to its first trial, and the median of the three: the darkest channel's
-        // log misfit is the largest and the noisiest, so summed it would decide alone, and one channel's fit
-        // can go astray where the other two agree.
-        let first = rounds.first().map_or(misfit, |r| r.misfit);
-        let criterion = optim::photometric::relative_median(misfit, first);
-        rounds.push(ExponentRound { exponent, misfit, criterion, terms: m.terms });
+        let (emitters, shares) = optim::photometric::comparison_emitters(&first.params.emission, &sets);
+        let record: Vec<SearchEmitter> = shares
+            .iter()
+            .map(|e| SearchEmitter {
+                id: objects[e.object].id,
+                label: objects[e.object].label.clone(),
+                share: e.share,
+                light: e.light,
+            })
+            .collect();
+        let described: Vec<String> = record
+            .iter()
+            .map(|e| {
+                let share =
+                    e.share.map_or("unseen".to_owned(), |s| format!("emission {:.0} % of its radiance", 100.0 * s));
+                format!("{} ({share}{})", e.label, if e.light { "" } else { ", left out" })
+            })
+            .collect();
         ctx.note(&format!(
-            "tone-curve exponent {exponent:.3}: held-out log misfit {} (R / G / B, {} terms), relative {criterion:.4}",
-            misfit.map(|v| format!("{v:.4e}")).join(" / "),
-            m.terms
+            "tone-curve exponent search: comparison fits with emission on {} of {} objects; the whole fit's emitters: {}",
+            emitters.iter().filter(|&&e| e).count(),
+            objects.len(),
+            if described.is_empty() { "none".to_owned() } else { described.join(", ") }
         ));
-        trial_fits.push((exponent, outcome));
-        let trials: Vec<(f64, f64)> = rounds.iter().map(|r| (r.exponent, r.criterion)).collect();
-        match optim::photometric::next_exponent(&trials) {
-            NextExponent::Try(e) => exponent = e,
-            NextExponent::Final(e) => {
-                exponent = e;
-                last_try = false;
-                if let Some(i) = trial_fits.iter().position(|(tried, _)| *tried == e) {
-                    ctx.note(&format!("exponent {e:.3} was tried already: its fit is the final one"));
-                    break trial_fits.swap_remove(i).1;
+        let mut rounds: Vec<ExponentRound> = Vec::new();
+        loop {
+            let trial = fit_at(exponent, FitMode::Comparison { emitters: &emitters }, false)?;
+            // Every trial is judged with the same random numbers on the same pixels (the held-out set depends on
+            // the photos' validity masks only).
+            let m = optim::photometric::trial_misfit(
+                &scene,
+                &cameras,
+                &trial.params,
+                &settings,
+                &sets.holdout,
+                exponent,
+                plan.object.holdout_spp,
+                plan.object.seed,
+            )?;
+            let misfit = m.channel;
+            // Each channel's misfit relative to its first trial, and the median of the three: the darkest
+            // channel's log misfit is the largest and the noisiest, so summed it would decide alone, and one
+            // channel's fit can go astray where the other two agree.
+            let reference = rounds.first().map_or(misfit, |r| r.misfit);
+            let criterion = optim::photometric::relative_median(misfit, reference);
+            rounds.push(ExponentRound { exponent, misfit, criterion, terms: m.terms });
+            ctx.note(&format!(
+                "tone-curve exponent {exponent:.3}: held-out log misfit {} (R / G / B, {} terms), relative {criterion:.4}",
+                misfit.map(|v| format!("{v:.4e}")).join(" / "),
+                m.terms
+            ));
+            let trials: Vec<(f64, f64)> = rounds.iter().map(|r| (r.exponent, r.criterion)).collect();
+            match optim::photometric::next_exponent(&trials) {
+                NextExponent::Try(e) => exponent = e,
+                NextExponent::Final(e) => {
+                    exponent = e;
+                    break;
                 }
             }
         }
+        search_record = Some((rounds, record));
+        if exponent == 1.0 {
+            ctx.note("exponent 1 kept: the first whole fit is the final one");
+            first
+        } else {
+            fit_at(exponent, FitMode::Full, false)?
+        }
+    } else {
+        first
     };
     let mut outputs = Vec::new();
-    if search {
-        let file = PhotometricFile { format: PHOTOMETRIC_FORMAT.into(), exponent: [exponent; 3], rounds };
+    if let Some((rounds, emitters)) = search_record {
+        let file = PhotometricFile { format: PHOTOMETRIC_FORMAT.into(), exponent: [exponent; 3], emitters, rounds };
         write_json_atomic(&ctx.dir.join(PHOTOMETRIC_FILE), &file)?;
         outputs.push(PathBuf::from("object").join(PHOTOMETRIC_FILE));
         ctx.note(&format!("photos raised to the exponent {exponent:.3} for the final fit and every later stage"));
