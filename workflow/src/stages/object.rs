@@ -1,9 +1,10 @@
 //! The `object` stage: per-object material and emission fit ([`optim::fit::fit_objects`]) on the ingested
 //! mesh and the prepared photos, with checkpoints so an interrupted run resumes where it stopped. When the
 //! photos' calibration left the tone curve's exponent open, the fit is followed by a measurement of that exponent
-//! against its renders (`optim::photometric`): fits of the photos raised to a few exponents are compared by
-//! their held-out log misfit, the search settles on the best, and the final fit uses it; the exponent goes to
-//! `photometric.json` for the later stages.
+//! against its renders (`optim::photometric`): comparison fits of the photos raised to a few exponents, with
+//! emission only on the first fit's lights, are compared by their held-out log misfit, the search settles on the
+//! best, and a whole fit of the photos raised to it is the result; the exponent goes to `photometric.json` for
+//! the later stages.
 //!
 //! Artefacts in `output.path/object/`:
 //! - `materials.json` — the result in the `ipt-materials/1` schema ([`crate::materials`]);
