@@ -18,8 +18,10 @@ pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>)
     let c = match search {
         Some(p) => {
             let e = p.exponent[1];
-            let lights: Vec<String> = p.emitters.iter().filter(|e| e.light).map(|e| escape(&e.label)).collect();
-            let glows: Vec<String> = p.emitters.iter().filter(|e| !e.light).map(|e| escape(&e.label)).collect();
+            // Labels repeat (two boxes); the id tells them apart, as in the objects table.
+            let name = |e: &&crate::artefacts::object::SearchEmitter| format!("{} (id {})", escape(&e.label), e.id);
+            let lights: Vec<String> = p.emitters.iter().filter(|e| e.light).map(|e| name(&e)).collect();
+            let glows: Vec<String> = p.emitters.iter().filter(|e| !e.light).map(|e| name(&e)).collect();
             let _ = writeln!(
                 s,
                 "<p>The photos alone left the tone curve's exponent open; diffuse fits of the photos raised to the \
@@ -200,6 +202,6 @@ mod tests {
         assert!(s.contains("<b>2.000</b>"), "{s}");
         assert!(s.contains("0.2500"), "gain 0.5 raised to 2: {s}");
         assert!(s.contains("4.0000e-3") && s.contains("3.0000e-3"), "{s}");
-        assert!(s.contains("(lamp; left out as faint emissions: wall)"), "{s}");
+        assert!(s.contains("(lamp (id 7); left out as faint emissions: wall (id 3))"), "{s}");
     }
 }

@@ -131,7 +131,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             .map(|e| {
                 let share =
                     e.share.map_or("unseen".to_owned(), |s| format!("emission {:.0} % of its radiance", 100.0 * s));
-                format!("{} ({share}{})", e.label, if e.light { "" } else { ", left out" })
+                format!("{} (id {}, {share}{})", e.label, e.id, if e.light { "" } else { ", left out" })
             })
             .collect();
         ctx.note(&format!(
