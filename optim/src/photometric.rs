@@ -58,8 +58,8 @@ pub fn render_misfit(
 }
 
 /// The misfit of one trial of the search: `params` fitted to the photos raised to `exponent`, judged on
-/// `holdout` (targets from the photos as given, raised here as `workflow`'s `raise_to_exponent` raises the
-/// photos) by [`render_misfit`], and returned in the photos' original log units (raising to e scales every
+/// `holdout` (targets from the photos as given, raised here by the rule that raises the photos,
+/// `ingest::photo::calibrate::raise_linear`) by [`render_misfit`], and returned in the photos' original log units (raising to e scales every
 /// log residual by e, so each mean square is divided by e²).
 #[allow(clippy::too_many_arguments)]
 pub fn trial_misfit(
@@ -75,7 +75,7 @@ pub fn trial_misfit(
     let e = exponent as f32;
     let raised: Vec<Sample> = holdout
         .iter()
-        .map(|s| Sample { target: s.target.map(|v| if v > 0.0 { v.powf(e) } else { v }), ..*s })
+        .map(|s| Sample { target: s.target.map(|v| ingest::photo::calibrate::raise_linear(v, e)), ..*s })
         .collect();
     let m = render_misfit(scene, cameras, params, settings, &raised, spp, seed)?;
     let scale = exponent * exponent;

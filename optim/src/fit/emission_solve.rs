@@ -59,25 +59,12 @@ pub fn basis_spp(spp: u32, basis_rows: usize, rows: usize) -> u32 {
     (total.div_ceil(rows as u64)).clamp(1, u64::from(spp)) as u32
 }
 
-/// Updates emission (and base colour) of `x` in place from a solve on `samples` (with their row weights, see
+/// Updates emission (and base colour) of `x` in place from a solve on `draw` (with its row weights, see
 /// [`linear::Problem::weights`]) with `spp` paths per Jacobian entry, random numbers keyed by `iteration_key`.
 /// `free_base_color[k]` = object k's base colour is constrained by the photos (seen in enough pixels); other base
-/// colours are left as they are. Returns the mean per-channel L1 residual of the parameters before the update.
-pub fn solve_step(
-    ctx: &Ctx<'_>,
-    x: &mut [f64],
-    samples: &WeightedDraw,
-    spp: u32,
-    iteration_key: u64,
-    free_base_color: &[bool],
-    opts: &SolveOptions,
-) -> Result<f64, TracerError> {
-    let none = vec![false; x.len() / layout::PER_OBJECT];
-    solve_step_pinned(ctx, x, samples, spp, iteration_key, free_base_color, &none, opts)
-}
-
-/// [`solve_step`] with the emission of every object with `no_emission[k]` held at 0 (the model selection's
-/// verdict that it does not emit).
+/// colours are left as they are. The emission of every object with `no_emission[k]` is held at 0 (model
+/// selection's verdict that it does not emit, or an object outside a comparison fit's lights). Returns the mean
+/// per-channel L1 residual of the parameters before the update.
 #[allow(clippy::too_many_arguments)]
 pub fn solve_step_pinned(
     ctx: &Ctx<'_>,
@@ -169,7 +156,7 @@ pub struct Columns<'a> {
     pub b: &'a [Vec<[f64; 3]>],
 }
 
-/// [`solve_step`]'s per-channel solve on Jacobian columns the caller estimated, for scenes whose material table
+/// [`solve_step_pinned`]'s per-channel solve on Jacobian columns the caller estimated, for scenes whose material table
 /// is not per object (the per-triangle stage): unknowns are the listed emissions `emission[i]` (columns
 /// `emission_cols`, exact since radiance is linear in emission) and material unknowns `material[i]` (columns
 /// `material_cols`, a linearisation about their current values; empty for an emission-only solve), over the
@@ -181,7 +168,7 @@ pub struct Columns<'a> {
 /// box [0, `material_hi[i]`]. Emissions with `emission_pinned[i]` are held at 0 (a model-selection verdict;
 /// the slice may be shorter than `emission`: missing entries are free); emitters not listed at all must be held
 /// at 0 by the caller. Returns the mean per-channel L1 residual before the update. The one assembly of these
-/// problems: the object stage's [`solve_step`] and the per-triangle stage's light re-solve both call it.
+/// problems: the object stage's [`solve_step_pinned`] and the per-triangle stage's light re-solve both call it.
 #[allow(clippy::too_many_arguments)]
 pub fn solve_on_columns(
     emission_cols: Columns<'_>,

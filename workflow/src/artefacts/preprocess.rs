@@ -248,7 +248,7 @@ pub fn raise_to_exponent(images: &mut [LinearImage], exponent: [f64; 3]) {
     images.par_iter_mut().for_each(|img| {
         for px in img.rgb.chunks_exact_mut(3) {
             for (v, e) in px.iter_mut().zip(e) {
-                *v = if *v > 0.0 { v.powf(e) } else { *v };
+                *v = ingest::photo::calibrate::raise_linear(*v, e);
             }
         }
     });

@@ -19,9 +19,9 @@ pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>)
         Some(p) => {
             let e = p.exponent[1];
             // Labels repeat (two boxes); the id tells them apart, as in the objects table.
-            let name = |e: &&crate::artefacts::object::SearchEmitter| format!("{} (id {})", escape(&e.label), e.id);
-            let lights: Vec<String> = p.emitters.iter().filter(|e| e.light).map(|e| name(&e)).collect();
-            let glows: Vec<String> = p.emitters.iter().filter(|e| !e.light).map(|e| name(&e)).collect();
+            let name = |e: &crate::artefacts::object::SearchEmitter| format!("{} (id {})", escape(&e.label), e.id);
+            let lights: Vec<String> = p.emitters.iter().filter(|e| e.light).map(name).collect();
+            let glows: Vec<String> = p.emitters.iter().filter(|e| !e.light).map(name).collect();
             let _ = writeln!(
                 s,
                 "<p>The photos alone left the tone curve's exponent open; diffuse fits of the photos raised to the \

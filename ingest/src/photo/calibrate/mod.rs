@@ -155,6 +155,13 @@ pub enum CalibrateError {
     Bracket(String),
 }
 
+/// A linear value `v` of a photo whose response is known only up to a power, raised to `exponent`: the
+/// correction the exponential ambiguity leaves open. Non-positive values (black, or masked) stay as they are.
+#[must_use]
+pub fn raise_linear(v: f32, exponent: f32) -> f32 {
+    if v > 0.0 { v.powf(exponent) } else { v }
+}
+
 /// Normalised squared radius of pixel `(x, y)` (pixel centres at integer coordinates) of a `width × height`
 /// image with principal point `(cx, cy)`: squared distance over that of the farthest image corner, so 0 at the
 /// principal point and 1 at the farthest corner.
