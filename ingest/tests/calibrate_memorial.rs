@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use ingest::photo::calibrate::{CalibrationOptions, GammaSource, ResponseMode, calibrate_bracket};
+use ingest::photo::calibrate::{CalibrationOptions, GammaSource, ResponseChannels, ResponseMode, calibrate_bracket};
 use ingest::photo::response::bracket;
 use ingest::photo::{DecodedImage, ResponseCurve, read_image, recover_response, recover_response_sampled};
 
@@ -65,6 +65,8 @@ fn memorial_exposures_and_response_from_the_photos_alone() {
         .collect();
     let opts = CalibrationOptions {
         response: ResponseMode::Estimate,
+        // Colour film: each dye layer has its own characteristic curve.
+        response_channels: ResponseChannels::PerChannel,
         exposure: true,
         white_balance: false,
         vignetting: false,

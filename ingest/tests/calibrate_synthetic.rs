@@ -6,7 +6,7 @@ mod formats_common;
 
 use formats_common::Rng;
 use ingest::photo::calibrate::{
-    Calibration, CalibrationOptions, GammaSource, Observation, ResponseMode, Vignetting, calibrate,
+    Calibration, CalibrationOptions, GammaSource, Observation, ResponseChannels, ResponseMode, Vignetting, calibrate,
 };
 
 fn normal(rng: &mut Rng) -> f64 {
@@ -87,6 +87,7 @@ fn linear_scene(seed: u64, photos: usize, groups: u32, spread: bool, noise: f64,
 fn linear_all_estimates() -> CalibrationOptions {
     CalibrationOptions {
         response: ResponseMode::Linear,
+        response_channels: ResponseChannels::Shared,
         exposure: true,
         white_balance: true,
         vignetting: true,
@@ -158,6 +159,15 @@ fn filmic(x: f64) -> f64 {
 /// Plain display gamma 1/2.2.
 fn gamma22(x: f64) -> f64 {
     x.clamp(0.0, 1.0).powf(1.0 / 2.2)
+}
+
+/// Display gammas 1/1.8 and 1/2.6: with [`gamma22`], three channels of one film with different dye curves.
+fn gamma18(x: f64) -> f64 {
+    x.clamp(0.0, 1.0).powf(1.0 / 1.8)
+}
+
+fn gamma26(x: f64) -> f64 {
+    x.clamp(0.0, 1.0).powf(1.0 / 2.6)
 }
 
 /// A film-like shoulder with a linear toe, normalised to 1 at x = 1.
@@ -285,4 +295,119 @@ fn whole_stop_bracket_far_from_srgb_is_flagged() {
     let step = cal.gains[0].unwrap()[1] / cal.gains[1].unwrap()[1];
     println!("film, 1-stop bracket: recovered step {step:.3} (true 2), {:?}", cal.gamma_source);
     assert!(!cal.gamma_reliable);
+}
+
+/// 12 photos of a warm room: exposures on the ⅓-EV lattice within ×0.5–2, each photo with its own white
+/// balance (±12 % per channel, product 1, so the channels' mean log gain is the exposure), channel `c` through
+/// `curves[c]`, 2 % noise, 8-bit. The radiances are tinted 1 : 0.6 : 0.3, so that each channel holds its own
+/// band of codes (blue mostly in the toe), as the consumer-camera fixture's walls do. Each photo sees a point
+/// with probability 0.7.
+fn tinted_scene(seed: u64, curves: [Curve; 3]) -> (Vec<[f64; 3]>, Vec<Observation>) {
+    let mut rng = Rng(seed);
+    let gains: Vec<[f64; 3]> = (0..12)
+        .map(|p| {
+            let exposure = 2f64.powf((p as f64 % 7.0 - 3.0) / 3.0);
+            let ln_wb: [f64; 3] = std::array::from_fn(|_| rng.uniform(0.88, 1.12).ln());
+            let mean = ln_wb.iter().sum::<f64>() / 3.0;
+            std::array::from_fn(|c| exposure * (ln_wb[c] - mean).exp())
+        })
+        .collect();
+    let tint = [1.0, 0.6, 0.3];
+    let mut observations = Vec::new();
+    for point in 0..1500u32 {
+        let level = 2f64.powf(rng.uniform(-6.0, 0.0));
+        let radiance: [f64; 3] = std::array::from_fn(|c| level * tint[c] * rng.uniform(0.8, 1.25));
+        for (p, g) in gains.iter().enumerate() {
+            if rng.uniform(0.0, 1.0) > 0.7 {
+                continue;
+            }
+            let value = std::array::from_fn(|c| {
+                let x = g[c] * radiance[c] * (0.02 * normal(&mut rng)).exp();
+                ((255.0 * curves[c](x)).round() / 255.0) as f32
+            });
+            observations.push(Observation { point, photo: p as u32, r2: 0.0, value });
+        }
+    }
+    (gains, observations)
+}
+
+fn estimate_tinted(
+    seed: u64,
+    curves: [Curve; 3],
+    channels: ResponseChannels,
+    white_balance: bool,
+) -> (Calibration, Vec<[f64; 3]>) {
+    let (gains, observations) = tinted_scene(seed, curves);
+    let opts = CalibrationOptions {
+        response: ResponseMode::Estimate,
+        response_channels: channels,
+        white_balance,
+        ..CalibrationOptions::default()
+    };
+    (calibrate(&[0; 12], &observations, &opts).unwrap(), gains)
+}
+
+/// Median over codes 8..=245 of |ln(estimated / true inverse response)| of channel `c`, both normalised at 128.
+fn channel_response_error(cal: &Calibration, f: Curve, c: usize) -> f64 {
+    let curve = cal.response.as_ref().expect("estimated response");
+    let truth = |z: usize| inverse(f, z as f64 / 255.0);
+    let mut errors: Vec<f64> = (8..=245)
+        .map(|z| {
+            let est = f64::from(curve.values()[z][c]) / f64::from(curve.values()[128][c]);
+            (est.ln() - (truth(z) / truth(128)).ln()).abs()
+        })
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    errors[errors.len() / 2]
+}
+
+#[test]
+fn shared_curve_through_per_photo_white_balance() {
+    // One camera curve after white balance: the shared curve is one set of knots for the three channels, so
+    // its three channels are the same function, and the gains come out on the lattice's exponent.
+    let curves: [Curve; 3] = [filmic, filmic, filmic];
+    let (cal, gains) = estimate_tinted(31, curves, ResponseChannels::Shared, true);
+    let (g, r) = (worst_gain_error(&cal, &gains), response_error(&cal, filmic));
+    let (per, _) = estimate_tinted(31, curves, ResponseChannels::PerChannel, true);
+    println!(
+        "tinted filmic, shared curve: worst gain error {g:.4}, response |ln| {r:.4}, {:?}; per-channel curves: \
+         worst gain error {:.4}, response |ln| {:.4}, {:?}",
+        cal.gamma_source,
+        worst_gain_error(&per, &gains),
+        response_error(&per, filmic),
+        per.gamma_source
+    );
+    let values = cal.response.as_ref().expect("estimated response").values();
+    assert!(values.iter().all(|v| v[0] == v[1] && v[1] == v[2]), "a shared curve differs between channels");
+    assert!(cal.gamma_reliable, "{:?}", cal.gamma_source);
+    assert!(g < 0.02, "{g}");
+    assert!(r < 0.05, "{r}");
+}
+
+#[test]
+fn per_channel_curves_of_film() {
+    // Three dye curves (gamma 1.8, 2.2, 2.6) and exposure-only gains: per-channel curves recover each, and a
+    // shared curve, which cannot represent them, lands between them: worse on the outer two.
+    let curves: [Curve; 3] = [gamma18, gamma22, gamma26];
+    let (per, gains) = estimate_tinted(32, curves, ResponseChannels::PerChannel, false);
+    let (shared, _) = estimate_tinted(32, curves, ResponseChannels::Shared, false);
+    let per_r: [f64; 3] = std::array::from_fn(|c| channel_response_error(&per, curves[c], c));
+    let shared_r: [f64; 3] = std::array::from_fn(|c| channel_response_error(&shared, curves[c], c));
+    // Exposure-only gains are the same for the three channels: compare with the channels' common exposure.
+    let exposures: Vec<[f64; 3]> =
+        gains.iter().map(|g| [(g.iter().map(|v| v.ln()).sum::<f64>() / 3.0).exp(); 3]).collect();
+    let g = worst_gain_error(&per, &exposures);
+    println!(
+        "film dyes: per-channel curves response |ln| {per_r:.4?}, worst gain error {g:.4}, {:?}; shared curve \
+         response |ln| {shared_r:.4?}",
+        per.gamma_source
+    );
+    assert!(per.gamma_reliable, "{:?}", per.gamma_source);
+    assert!(g < 0.02, "{g}");
+    for c in 0..3 {
+        assert!(per_r[c] < 0.05, "channel {c}: {}", per_r[c]);
+    }
+    for c in [0, 2] {
+        assert!(shared_r[c] > 2.0 * per_r[c], "channel {c}: shared {} per-channel {}", shared_r[c], per_r[c]);
+    }
 }

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use ingest::photo::calibrate::ResponseChannels;
 use ingest::{GroupBy, ScanFormat};
 use tracer::EmissionProfile;
 
@@ -108,6 +109,10 @@ pub struct ImagesConfig {
     /// photos themselves (their overlap under different exposures). Linear (EXR/HDR) photos ignore it.
     #[serde(default)]
     pub response: ResponseChoice,
+    /// With `response = "estimate"`: one curve for the three channels (a digital camera's single tone curve
+    /// after white balance) or one per channel (colour film).
+    #[serde(default)]
+    pub response_channels: ResponseChannels,
     /// One exposure for every photo, or one gain per photo estimated from the photos' overlap.
     #[serde(default)]
     pub exposure: PerPhoto,
@@ -179,6 +184,7 @@ impl Default for ImagesConfig {
             cameras: Vec::new(),
             every: 1,
             response: ResponseChoice::default(),
+            response_channels: ResponseChannels::default(),
             exposure: PerPhoto::default(),
             white_balance: PerPhoto::default(),
             vignetting: VignettingChoice::default(),

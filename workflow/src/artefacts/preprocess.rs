@@ -11,14 +11,14 @@ use ingest::photo::LinearImage;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use ingest::photo::calibrate::{Calibration, CalibrationOptions, ResponseMode};
+use ingest::photo::calibrate::{Calibration, CalibrationOptions, ResponseChannels, ResponseMode};
 
 use crate::stage_contract::StageError;
 
 /// The photometric calibration's file name.
 pub const CALIBRATION_FILE: &str = "calibration.json";
 /// Format tag of `calibration.json`.
-pub const CALIBRATION_FORMAT: &str = "ipt-calibration/1";
+pub const CALIBRATION_FORMAT: &str = "ipt-calibration/2";
 
 /// `calibration.json`: what the photos' overlap said about each photo and camera.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -27,6 +27,9 @@ pub struct CalibrationFile {
     pub format: String,
     /// `"linear"` (linear photos), `"srgb"` (display photos, sRGB curve) or `"estimate"` (response estimated).
     pub response_mode: String,
+    /// With an estimated response: one curve for the three channels (`"shared"`) or one each
+    /// (`"per_channel"`); `None` otherwise.
+    pub response_channels: Option<ResponseChannels>,
     pub exposure: bool,
     pub white_balance: bool,
     pub vignetting: bool,
@@ -111,6 +114,7 @@ impl CalibrationFile {
                 ResponseMode::Estimate => "estimate",
             }
             .into(),
+            response_channels: (opts.response == ResponseMode::Estimate).then_some(opts.response_channels),
             exposure: opts.exposure,
             white_balance: opts.white_balance,
             vignetting: opts.vignetting,

@@ -4,6 +4,8 @@
 
 use std::fmt::Write;
 
+use ingest::photo::calibrate::ResponseChannels;
+
 use crate::artefacts::object::PhotometricFile;
 use crate::artefacts::preprocess::CalibrationFile;
 use crate::svg::{Curve, escape, line_chart};
@@ -59,7 +61,12 @@ pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>)
         per_photo(c.exposure),
         per_photo(c.white_balance),
         if c.vignetting { "estimated per camera" } else { "none" },
-        escape(&c.response_mode)
+        match c.response_channels {
+            Some(ResponseChannels::Shared) =>
+                format!("{} (one curve for the three channels)", escape(&c.response_mode)),
+            Some(ResponseChannels::PerChannel) => format!("{} (one curve per channel)", escape(&c.response_mode)),
+            None => escape(&c.response_mode),
+        }
     );
     let _ = writeln!(s, "<table><tr><th>view</th><th>camera</th><th>gain R</th><th>gain G</th><th>gain B</th></tr>");
     for v in &c.views {
@@ -148,6 +155,7 @@ mod tests {
         CalibrationFile {
             format: CALIBRATION_FORMAT.into(),
             response_mode: if response { "estimate" } else { "linear" }.into(),
+            response_channels: response.then_some(ResponseChannels::Shared),
             exposure: true,
             white_balance: false,
             vignetting,

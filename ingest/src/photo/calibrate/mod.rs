@@ -6,7 +6,8 @@
 //! radius `r²` ([`normalised_r2`]) as `z_c = f_c(g_{p,c} · v_k(r²) · L_c)`, so with `h_c = ln f_c⁻¹`
 //! `h_c(z_c) = ln g_{p,c} + ln v_k(r²) + ln L_c` — linear in the log gains, the vignetting coefficients
 //! (`ln v = β1 r² + β2 r⁴ + β3 r⁶`, so `v(0) = 1`) and the log radiances, and, when the response is estimated,
-//! in the response's knot values too ([`response`]). `solve` minimises it as robust weighted least squares
+//! in the response's knot values too ([`response`]): one set of knots for the three channels
+//! ([`ResponseChannels::Shared`], `f_c = f`) or one per channel. `solve` minimises it as robust weighted least squares
 //! (IRLS: Huber then Tukey with a known response, Huber only when it is estimated) with every point's log
 //! radiance eliminated; `model` builds the rows and decides which photos are linked well enough to be solved.
 //!
@@ -56,10 +57,26 @@ pub enum ResponseMode {
     Estimate,
 }
 
+/// Whether an estimated response is one curve for the three channels or one per channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ResponseChannels {
+    /// One curve: a digital camera white-balances its raw channels and then applies one tone curve to each,
+    /// so the channels differ only by gains, which the per-photo gains (or the radiances) absorb. Every row
+    /// constrains the same knots, so the curve spans the union of the channels' codes instead of each
+    /// channel's narrow band, and the channels' exponents cannot drift apart.
+    #[default]
+    Shared,
+    /// One curve per channel: colour film, whose dye layers have their own characteristic curves.
+    PerChannel,
+}
+
 /// What to estimate.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct CalibrationOptions {
     pub response: ResponseMode,
+    /// One estimated curve for the channels or one each ([`ResponseMode::Estimate`] only).
+    pub response_channels: ResponseChannels,
     /// A per-photo factor common to the channels.
     pub exposure: bool,
     /// A per-photo, per-channel factor with `Σ_c ln wb = 0`.
@@ -72,7 +89,14 @@ pub struct CalibrationOptions {
 
 impl Default for CalibrationOptions {
     fn default() -> Self {
-        Self { response: ResponseMode::Srgb, exposure: true, white_balance: false, vignetting: false, seed: 0 }
+        Self {
+            response: ResponseMode::Srgb,
+            response_channels: ResponseChannels::Shared,
+            exposure: true,
+            white_balance: false,
+            vignetting: false,
+            seed: 0,
+        }
     }
 }
 

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use super::response::{self, KNOTS};
 use super::result::{Layout, RowInfo, finish};
 use super::solve::{self, Constraint, Penalty, Problem, Row};
-use super::{CalibrateError, Calibration, CalibrationOptions, Observation, ResponseMode};
+use super::{CalibrateError, Calibration, CalibrationOptions, Observation, ResponseChannels, ResponseMode};
 use crate::photo::mask::SATURATION_FRACTION;
 use crate::srgb;
 
@@ -187,7 +187,12 @@ pub(super) fn run(
         .map(|k| opts.vignetting && count[k] > 0 && (spread[k] / count[k] as f64).sqrt() > MIN_R2_SPREAD)
         .collect();
     // Layout: response knots, gains, vignetting.
-    let h_len = if mode == ResponseMode::Estimate { 3 * KNOTS } else { 0 };
+    let curves = match (mode, opts.response_channels) {
+        (ResponseMode::Estimate, ResponseChannels::Shared) => 1,
+        (ResponseMode::Estimate, ResponseChannels::PerChannel) => 3,
+        _ => 0,
+    };
+    let h_len = curves * KNOTS;
     let per_photo = if opts.white_balance { 3 } else { usize::from(opts.exposure) };
     let mut n = h_len;
     let gain = (0..n_photos)
@@ -207,7 +212,7 @@ pub(super) fn run(
             })
         })
         .collect();
-    let layout = Layout { gain, per_photo, beta, n };
+    let layout = Layout { curves, gain, per_photo, beta, n };
     // A known response is trusted over its whole range: every row, Huber's weights, then Tukey's. An
     // estimated one uses mid codes only (see START_CODES) and Huber's weights throughout: the exponent gauge
     // is not a symmetry of Tukey's bounded loss, and the biweight finds it cheaper to reject every row of one
@@ -225,8 +230,9 @@ pub(super) fn run(
             let mut row = Row::new(y, w);
             if mode == ResponseMode::Estimate {
                 let (k, t) = response::knot_weights(f64::from(o.value[c as usize]));
-                row.push(c as usize * KNOTS + k, 1.0 - t);
-                row.push(c as usize * KNOTS + k + 1, t);
+                let h = layout.curve(c as usize);
+                row.push(h + k, 1.0 - t);
+                row.push(h + k + 1, t);
             }
             if let Some(first) = layout.gain[o.photo as usize] {
                 row.push(first + if layout.per_photo == 3 { c as usize } else { 0 }, -1.0);
@@ -299,25 +305,28 @@ fn add_gauges(problem: &mut Problem, layout: &Layout, opts: &CalibrationOptions,
         return 0;
     }
     let mut scale_gauges = Vec::new();
+    // Per channel and knot, so that a shared curve (which holds all three channels' rows) is smoothed as
+    // strongly as each of three per-channel curves.
     let lambda = SMOOTHNESS * total_w / (3 * KNOTS) as f64;
-    let point = |c: usize, z: f64| {
+    let point = |h: usize, z: f64| {
         let (k, t) = response::knot_weights(z);
-        vec![(c * KNOTS + k, 1.0 - t), (c * KNOTS + k + 1, t)]
+        vec![(h + k, 1.0 - t), (h + k + 1, t)]
     };
-    for c in 0..3 {
+    for curve in 0..layout.curves {
+        let h = curve * KNOTS;
         for k in 1..KNOTS - 1 {
-            let entries = vec![(c * KNOTS + k - 1, 1.0), (c * KNOTS + k, -2.0), (c * KNOTS + k + 1, 1.0)];
+            let entries = vec![(h + k - 1, 1.0), (h + k, -2.0), (h + k + 1, 1.0)];
             // Debevec & Malik weight the smoothness like the data (hat weight at the knot's code), so the curve
             // may bend sharply at the ends, where a film toe or shoulder compresses many stops into few codes.
             let z = (k as f64 / (KNOTS - 1) as f64).powi(2);
             let hat = (z.min(1.0 - z) * 2.0).max(MIN_SMOOTHING_HAT);
             problem.penalties.push(Penalty { entries, target: 0.0, weight: lambda * hat * hat });
         }
-        problem.constraints.push(Constraint { entries: point(c, REF_CODE), target: 0.0 });
+        problem.constraints.push(Constraint { entries: point(h, REF_CODE), target: 0.0 });
         // Provisional exponent: shared gains tie the channels' exponents, so one channel's gauge fixes all.
-        if layout.per_photo == 3 || c == 1 {
-            let mut entries = point(c, GAUGE_CODES.1);
-            entries.extend(point(c, GAUGE_CODES.0).into_iter().map(|(i, w)| (i, -w)));
+        if layout.per_photo == 3 || layout.curves == 1 || curve == 1 {
+            let mut entries = point(h, GAUGE_CODES.1);
+            entries.extend(point(h, GAUGE_CODES.0).into_iter().map(|(i, w)| (i, -w)));
             scale_gauges.push(Constraint { entries, target: response::gauge_span(GAUGE_CODES.0, GAUGE_CODES.1) });
         }
     }
@@ -345,14 +354,18 @@ fn gauge_on_shape(problem: &mut Problem, layout: &Layout, n_scale: usize) -> Res
             }
         }
     }
-    // Shared gains tie the channels' exponents: one gauge over all knots; per-channel gains one per channel.
-    let channel_sets: Vec<Vec<usize>> =
-        if layout.per_photo == 3 { vec![vec![0], vec![1], vec![2]] } else { vec![vec![0, 1, 2]] };
+    // A shared curve or shared gains tie the channels' exponents: one gauge over all knots; per-channel
+    // curves with per-channel gains one per curve.
+    let curve_sets: Vec<Vec<usize>> = match layout.curves {
+        3 if layout.per_photo == 3 => vec![vec![0], vec![1], vec![2]],
+        3 => vec![vec![0, 1, 2]],
+        _ => vec![vec![0]],
+    };
     let mut gauges = Vec::new();
-    for set in channel_sets {
+    for set in curve_sets {
         let knots: Vec<usize> =
             set.iter().flat_map(|&c| c * KNOTS..(c + 1) * KNOTS).filter(|&k| support[k] >= MIN_LINKS).collect();
-        // Centred per channel: the offsets are gauged separately (curve(128) = 1).
+        // Centred per curve: the offsets are gauged separately (curve(128) = 1).
         let mut entries = Vec::new();
         for &c in &set {
             let own: Vec<usize> = knots.iter().copied().filter(|k| k / KNOTS == c).collect();
@@ -374,7 +387,7 @@ fn gauge_on_shape(problem: &mut Problem, layout: &Layout, n_scale: usize) -> Res
 /// exactly one exponent near the shape prior fits it, else the bracket's own step. Returns the exponent choice
 /// and the snapped log exposures per solved photo (provisional units), or `None` when neither lattice fits.
 fn snap_exposures(theta: &[f64], layout: &Layout) -> Option<(response::ScaleChoice, Vec<f64>)> {
-    let h: Vec<&[f64]> = (0..3).map(|c| &theta[c * KNOTS..(c + 1) * KNOTS]).collect();
+    let h: Vec<&[f64]> = (0..3).map(|c| layout.knots(theta, c)).collect();
     let prior = response::shape_prior_scale(&h);
     let x: Vec<f64> = layout.gain.iter().flatten().map(|&g| theta[g]).collect();
     let choice = response::choose_scale(prior, &x);
@@ -396,7 +409,8 @@ fn snap_exposures(theta: &[f64], layout: &Layout) -> Option<(response::ScaleChoi
 fn refit_with_exposures(problem: &mut Problem, layout: &Layout, snapped: &[f64]) {
     let mean = snapped.iter().sum::<f64>() / snapped.len().max(1) as f64;
     let gains: Vec<usize> = layout.gain.iter().flatten().copied().collect();
-    problem.constraints.retain(|c| c.entries.iter().all(|e| e.0 < 3 * KNOTS) && c.entries.len() <= 2);
+    let curve_end = layout.curves * KNOTS;
+    problem.constraints.retain(|c| c.entries.iter().all(|e| e.0 < curve_end) && c.entries.len() <= 2);
     for (&g, &x) in gains.iter().zip(snapped) {
         problem.constraints.push(Constraint { entries: vec![(g, 1.0)], target: x - mean });
     }

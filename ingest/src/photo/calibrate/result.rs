@@ -8,6 +8,8 @@ use crate::photo::response::{CURVE_LEN, ResponseCurve};
 
 /// Layout of the unknowns (built by `super::model`, read back here).
 pub(super) struct Layout {
+    /// Estimated response curves, first in the unknowns: 0 (known response), 1 (shared) or 3 (per channel).
+    pub curves: usize,
     /// First gain unknown of each solved photo.
     pub gain: Vec<Option<usize>>,
     /// Gains per photo: 0 (none), 1 (exposure) or 3 (per channel).
@@ -15,6 +17,18 @@ pub(super) struct Layout {
     /// First vignetting unknown of each group.
     pub beta: Vec<Option<usize>>,
     pub n: usize,
+}
+
+impl Layout {
+    /// First knot unknown of channel `c`'s curve (with `curves > 0`).
+    pub fn curve(&self, c: usize) -> usize {
+        if self.curves == 3 { c * KNOTS } else { 0 }
+    }
+
+    /// Channel `c`'s knot values.
+    pub fn knots<'a>(&self, theta: &'a [f64], c: usize) -> &'a [f64] {
+        &theta[self.curve(c)..self.curve(c) + KNOTS]
+    }
 }
 
 /// Source observation and channel of every solver row.
@@ -35,8 +49,8 @@ const MIN_SHARED_KNOTS: usize = 4;
 
 /// Each response knot's data weight: the rows' base × robust weights (those that take part) times their
 /// interpolation weight on the knot.
-fn knot_support(problem: &Problem, sol: &Solution) -> Vec<f64> {
-    let mut support = vec![0.0; 3 * KNOTS];
+fn knot_support(problem: &Problem, sol: &Solution, layout: &Layout) -> Vec<f64> {
+    let mut support = vec![0.0; layout.curves * KNOTS];
     for (i, r) in problem.rows.iter().enumerate() {
         let take = problem.start.get(i).copied().unwrap_or(1.0) * sol.robust[i] * r.w;
         for e in 0..usize::from(r.len) {
@@ -75,13 +89,13 @@ fn matched_curves(theta: &[f64], support: &[f64], c: usize) -> Option<f64> {
 /// their exposures by chance (docs/photo/self-calibration.md, "Relating the channels"). The gains' regression
 /// remains the fallback when two channels share too few codes.
 fn channel_ratios(theta: &[f64], layout: &Layout, opts: &CalibrationOptions, rows: (&Problem, &Solution)) -> [f64; 3] {
-    let h = |c: usize| &theta[c * KNOTS..(c + 1) * KNOTS];
-    let prior: [f64; 3] = std::array::from_fn(|c| response::shape_prior_scale(&[h(c)]));
-    let from_prior = std::array::from_fn(|c| prior[c] / prior[1]);
-    if layout.per_photo != 3 {
+    // Shared gains tie the channels' exponents; a shared curve is one exponent.
+    if layout.per_photo != 3 || layout.curves != 3 {
         return [1.0; 3];
     }
-    let support = knot_support(rows.0, rows.1);
+    let prior: [f64; 3] = std::array::from_fn(|c| response::shape_prior_scale(&[layout.knots(theta, c)]));
+    let from_prior = std::array::from_fn(|c| prior[c] / prior[1]);
+    let support = knot_support(rows.0, rows.1, layout);
     let matched: [Option<f64>; 3] =
         std::array::from_fn(|c| if c == 1 { Some(1.0) } else { matched_curves(theta, &support, c) });
     if matched.iter().all(Option::is_some) {
@@ -121,7 +135,7 @@ pub(super) fn finish(
     if opts.response == ResponseMode::Estimate {
         let rho = channel_ratios(theta, layout, opts, (problem, sol));
         let scaled: Vec<Vec<f64>> =
-            (0..3).map(|c| theta[c * KNOTS..(c + 1) * KNOTS].iter().map(|v| v * rho[c]).collect()).collect();
+            (0..3).map(|c| layout.knots(theta, c).iter().map(|v| v * rho[c]).collect()).collect();
         let prior = response::shape_prior_scale(&[&scaled[0], &scaled[1], &scaled[2]]);
         let log_exposures: Vec<f64> = layout
             .gain
@@ -147,8 +161,7 @@ pub(super) fn finish(
             .map(|z| {
                 let code = z as f64 / (CURVE_LEN - 1) as f64;
                 std::array::from_fn(|c| {
-                    let h = &theta[c * KNOTS..(c + 1) * KNOTS];
-                    (scale[c] * response::eval(h, code)).clamp(-MAX_LN, MAX_LN).exp() as f32
+                    (scale[c] * response::eval(layout.knots(theta, c), code)).clamp(-MAX_LN, MAX_LN).exp() as f32
                 })
             })
             .collect();

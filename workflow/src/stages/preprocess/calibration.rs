@@ -180,6 +180,7 @@ pub fn observe_overlap(
 pub fn options(cfg: &ImagesConfig, mode: ResponseMode, seed: u64) -> CalibrationOptions {
     CalibrationOptions {
         response: mode,
+        response_channels: cfg.response_channels,
         exposure: cfg.exposure == PerPhoto::PerPhoto,
         white_balance: cfg.white_balance == PerPhoto::PerPhoto,
         vignetting: cfg.vignetting == VignettingChoice::Estimate,

@@ -9,7 +9,7 @@
 //! Artefacts in `output.path/preprocess/` ([`crate::artefacts::preprocess`] reads them back): `<view>.exr` +
 //! `<view>.json` per view (ingest's photo cache: R, G, B, mask and the prepared pinhole camera), `views.json` =
 //! `{"format": "ipt-views/1", "views": [names in order]}`, the order every later stage uses for view indices,
-//! and, when calibrated, `calibration.json` (`ipt-calibration/1`: per-view gains, vignetting per camera,
+//! and, when calibrated, `calibration.json` (`ipt-calibration/2`: per-view gains, vignetting per camera,
 //! the response beside sRGB).
 
 pub mod calibration;
