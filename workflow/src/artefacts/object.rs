@@ -96,8 +96,8 @@ pub struct ExponentRound {
     pub exponent: f64,
     /// Its held-out log misfit per channel in the photos' original log units (`optim::photometric`).
     pub misfit: [f64; 3],
-    /// What the search minimises: the median over channels of each channel's misfit relative to its misfit
-    /// in the first trial.
+    /// What the search minimises: the mean over channels of each channel's misfit relative to its misfit in
+    /// the first trial.
     pub criterion: f64,
     /// (Pixel, channel) pairs measured.
     pub terms: usize,

@@ -29,7 +29,7 @@ pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>)
                 "<p>The photos alone left the tone curve's exponent open; diffuse fits of the photos raised to the \
                  exponents below, with emission only on the first whole fit's lights ({}{}), were compared by their \
                  held-out log misfit per channel (in the photos' original log units; the search minimises the \
-                 median over channels of each one relative to its first trial), and the final fit used \
+                 mean over channels of each one relative to its first trial), and the final fit used \
                  <b>{e:.3}</b>. Gains, vignetting and response below are raised to it.</p>",
                 if lights.is_empty() { "none: every object could emit".to_owned() } else { lights.join(", ") },
                 if glows.is_empty() {

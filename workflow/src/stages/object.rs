@@ -156,11 +156,10 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
                 plan.object.seed,
             )?;
             let misfit = m.channel;
-            // Each channel's misfit relative to its first trial, and the median of the three: the darkest
-            // channel's log misfit is the largest and the noisiest, so summed it would decide alone, and one
-            // channel's fit can go astray where the other two agree.
+            // Each channel's misfit relative to its first trial, and the mean of the three: the darkest
+            // channel's log misfit is the largest and the noisiest, so summed it would decide alone.
             let reference = rounds.first().map_or(misfit, |r| r.misfit);
-            let criterion = optim::photometric::relative_median(misfit, reference);
+            let criterion = optim::photometric::relative_mean(misfit, reference);
             rounds.push(ExponentRound { exponent, misfit, criterion, terms: m.terms });
             ctx.note(&format!(
                 "tone-curve exponent {exponent:.3}: held-out log misfit {} (R / G / B, {} terms), relative {criterion:.4}",
