@@ -231,6 +231,19 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
     front
 }
 
+/// An axis tick's label: integers as such (iterations, sizes), other values to four decimals without
+/// trailing zeros between 10⁻³ and 10⁴ (a code 1/255 is `0.0039`, not its 17 digits), else in exponent form.
+fn tick_label(v: f64) -> String {
+    let a = v.abs();
+    if v == v.round() && a < 1e9 {
+        format!("{v:.0}")
+    } else if (1e-3..1e4).contains(&a) {
+        format!("{v:.4}").trim_end_matches('0').trim_end_matches('.').to_owned()
+    } else {
+        format!("{v:.3e}")
+    }
+}
+
 /// One named curve of a [`line_chart`].
 #[derive(Debug, Clone, Copy)]
 pub struct Curve<'a> {
@@ -289,7 +302,8 @@ pub fn line_chart(series: &[Curve<'_>], width: u32, height: u32, x_label: &str, 
         let _ = write!(svg, r#"<text x="{}" y="{}" text-anchor="end">{shown:.3e}</text>"#, left - 4.0, y + 4.0);
     }
     for (tick, anchor) in [(x0, "start"), (x1, "end")] {
-        let _ = write!(svg, r#"<text x="{}" y="{}" text-anchor="{anchor}">{tick}</text>"#, sx(tick), top + h + 14.0);
+        let label = tick_label(tick);
+        let _ = write!(svg, r#"<text x="{}" y="{}" text-anchor="{anchor}">{label}</text>"#, sx(tick), top + h + 14.0);
     }
     for (i, s) in series.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
@@ -315,6 +329,14 @@ pub fn line_chart(series: &[Curve<'_>], width: u32, height: u32, x_label: &str, 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn tick_labels_are_short() {
+        assert_eq!(tick_label(100.0), "100");
+        assert_eq!(tick_label(1.0 / 255.0), "0.0039");
+        assert_eq!(tick_label(0.25), "0.25");
+        assert_eq!(tick_label(2.5e-5), "2.500e-5");
+    }
 
     #[test]
     fn pareto_front_keeps_only_undominated_points() {

@@ -105,13 +105,20 @@ pub fn section(preprocessed: &CalibrationFile, search: Option<&PhotometricFile>)
             (1..r.len()).map(|z| (z as f64 / n, f64::from(ingest::srgb::decode(z as f32 / n as f32)) / mid)).collect();
         let (red, green, blue) = (channel(0), channel(1), channel(2));
         // In the order of `svg::line_chart`'s colours (blue, red, green, purple), so that each channel is
-        // drawn in its own colour.
-        let curves = [
-            Curve { name: "estimated B", points: &blue },
-            Curve { name: "estimated R", points: &red },
-            Curve { name: "estimated G", points: &green },
-            Curve { name: "sRGB", points: &srgb },
-        ];
+        // drawn in its own colour; a curve shared by the channels is drawn once.
+        let curves = if c.response_channels == Some(ResponseChannels::Shared) {
+            vec![
+                Curve { name: "estimated (one curve for R, G, B)", points: &green },
+                Curve { name: "sRGB", points: &srgb },
+            ]
+        } else {
+            vec![
+                Curve { name: "estimated B", points: &blue },
+                Curve { name: "estimated R", points: &red },
+                Curve { name: "estimated G", points: &green },
+                Curve { name: "sRGB", points: &srgb },
+            ]
+        };
         let _ = writeln!(
             s,
             "<figure><figcaption>Inverse response: code value → relative exposure (1 at code 128), log scale\
@@ -185,6 +192,11 @@ mod tests {
         assert!(s.contains("a&lt;b") && s.contains("0.5000"), "gains table escapes names: {s}");
         assert!(s.contains("left out: all clipped"));
         assert!(s.contains("Inverse response") && s.contains("sRGB"));
+        assert!(s.contains("one curve for R, G, B") && !s.contains("estimated B"), "a shared curve is drawn once");
+        let mut film = file(true, true);
+        film.response_channels = Some(ResponseChannels::PerChannel);
+        let per = section(&film, None);
+        assert!(per.contains("estimated B") && per.contains("estimated R") && per.contains("estimated G"));
         assert!(s.contains("Vignetting"));
         let plain = section(&file(false, false), None);
         assert!(!plain.contains("Inverse response") && !plain.contains("Vignetting:"));
