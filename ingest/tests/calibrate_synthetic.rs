@@ -411,3 +411,29 @@ fn per_channel_curves_of_film() {
         assert!(shared_r[c] > 2.0 * per_r[c], "channel {c}: shared {} per-channel {}", shared_r[c], per_r[c]);
     }
 }
+
+#[test]
+fn photos_of_unlinked_rooms_are_calibrated_each_on_their_own() {
+    // Two rooms of 6 photos each that no photo links (disjoint points): with a known response both are
+    // solved, each with gains of geometric mean 1; nothing relates the two rooms' exposures.
+    let a = linear_scene(14, 6, 1, true, 0.01, 0.0);
+    let b = linear_scene(15, 6, 1, true, 0.01, 0.0);
+    let mut observations = a.observations.clone();
+    observations.extend(b.observations.iter().map(|o| Observation {
+        point: o.point + 100_000,
+        photo: o.photo + 6,
+        ..*o
+    }));
+    // One camera group per room (its vignetting estimated), so that the rooms share no unknown.
+    let groups: Vec<u32> = (0..12).map(|p| u32::from(p >= 6)).collect();
+    let cal = calibrate(&groups, &observations, &linear_all_estimates()).unwrap();
+    assert_eq!(cal.linked_sets, 2);
+    assert!(cal.unconstrained.is_empty(), "{:?}", cal.unconstrained);
+    let room = |range: std::ops::Range<usize>, truth: &[[f64; 3]]| {
+        let part = Calibration { gains: cal.gains[range].to_vec(), ..cal.clone() };
+        worst_gain_error(&part, truth)
+    };
+    let (ea, eb) = (room(0..6, &a.gains), room(6..12, &b.gains));
+    println!("unlinked rooms: worst gain error {ea:.5} / {eb:.5}");
+    assert!(ea < 0.005 && eb < 0.005, "{ea} {eb}");
+}

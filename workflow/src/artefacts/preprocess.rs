@@ -40,6 +40,9 @@ pub struct CalibrationFile {
     /// RMS of the kept observations' log residuals.
     pub residual_rms: f64,
     pub views: Vec<CalibratedView>,
+    /// Sets of views linked by shared points; each set's gains have a geometric mean of 1 on their own, since
+    /// nothing relates the exposures of views that see no common point.
+    pub linked_sets: usize,
     pub cameras: Vec<CameraVignetting>,
     /// The estimated response, 256 RGB entries (code → relative exposure), each channel scaled to 1 at code
     /// 128; `None` unless estimated.
@@ -123,6 +126,7 @@ impl CalibrationFile {
             used_observations: cal.used_observations,
             residual_rms: cal.residual_rms,
             views,
+            linked_sets: cal.linked_sets,
             cameras,
             response,
             exponent_source: format!("{:?}", cal.gamma_source),
@@ -165,7 +169,14 @@ impl CalibrationFile {
             self.residual_rms,
             if corners.is_empty() { "none".to_owned() } else { corners.join(" / ") },
             self.response_mode
-        ) + if self.exponent_reliable {
+        ) + &if self.linked_sets > 1 {
+            format!(
+                " (in {} sets of views that share no point; each set's gains have a geometric mean of 1)",
+                self.linked_sets
+            )
+        } else {
+            String::new()
+        } + if self.exponent_reliable {
             ""
         } else {
             " (its exponent is not fixed by the photos alone: the object stage measures it against its renders)"

@@ -170,6 +170,7 @@ mod tests {
             observations: 250,
             used_observations: 240,
             residual_rms: 0.01,
+            linked_sets: 1,
             views: vec![
                 CalibratedView { name: "a<b".into(), camera: 0, gain: Some([0.5, 0.5, 0.5]), left_out: None },
                 CalibratedView { name: "c".into(), camera: 1, gain: None, left_out: Some("all clipped".into()) },

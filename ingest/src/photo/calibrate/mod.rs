@@ -11,7 +11,9 @@
 //! (IRLS: Huber then Tukey with a known response, Huber only when it is estimated) with every point's log
 //! radiance eliminated; `model` builds the rows and decides which photos are linked well enough to be solved.
 //!
-//! Gauges: the geometric mean of the solved photos' gains is 1 per channel (radiance and gain trade exactly);
+//! Gauges: the geometric mean of the solved photos' gains is 1 per channel (radiance and gain trade exactly)
+//! within each set of photos linked by shared points (with a known response every such set is solved; with an
+//! estimated one only the largest);
 //! with white balance, `ln g_{p,c} = ln exposure_p + ln wb_{p,c}` with `Σ_c ln wb_{p,c} = 0`. An estimated
 //! response is normalised like [`crate::photo::recover_response`]'s: `curve(128) = 1` per channel (a mid
 //! code that every photo set observes; code 255 is clipped and carries no data). The exponent of an estimated
@@ -130,8 +132,12 @@ impl Default for Vignetting {
 /// The result. Indices are photo indices of the input.
 #[derive(Debug, Clone)]
 pub struct Calibration {
-    /// Per photo: `g_{p,c}` (geometric mean 1 per channel over the solved photos); `None` = unconstrained.
+    /// Per photo: `g_{p,c}` (geometric mean 1 per channel over the solved photos of each linked set);
+    /// `None` = unconstrained.
     pub gains: Vec<Option<[f64; 3]>>,
+    /// Sets of photos linked by shared points, each calibrated with its own gain gauge (1 unless the response
+    /// is known and some photos share no point with the others).
+    pub linked_sets: usize,
     /// Photos left out and why.
     pub unconstrained: Vec<(u32, String)>,
     /// Per camera group (`max(photo_groups) + 1` entries); [`Vignetting::none`] where not estimated.

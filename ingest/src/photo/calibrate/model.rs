@@ -67,13 +67,18 @@ fn usable(v: f32, mode: ResponseMode) -> Option<(f64, f64)> {
     }
 }
 
-/// Which photos are solved: iteratively drop photos with fewer than [`MIN_LINKS`] links, then keep the
-/// largest connected set (photos joined by shared points). Returns the kept flags and the reasons of the rest.
+/// Which photos are solved: iteratively drop photos with fewer than [`MIN_LINKS`] links, then split the rest
+/// into linked sets (photos joined by shared points). With `all_sets` every set is kept, each with its own
+/// gain gauge (a known response: rooms that no photo links are calibrated each on its own, which is never
+/// worse than one fixed exposure for all); otherwise only the largest (an estimated response: its exponent
+/// and exposure lattice need one set of comparable exposures). Returns each photo's set (`None` = not
+/// solved) and the reasons of the photos left out.
 fn linked_photos(
     n_photos: usize,
     obs: &[(usize, u32)],
     observations: &[Observation],
-) -> (Vec<bool>, Vec<(u32, String)>) {
+    all_sets: bool,
+) -> (Vec<Option<usize>>, Vec<(u32, String)>) {
     let mut active = vec![true; n_photos];
     let mut reasons = Vec::new();
     let mut by_point: HashMap<u32, Vec<u32>> = HashMap::new();
@@ -123,14 +128,22 @@ fn linked_photos(
         size[root(&mut parent, p)] += 1;
     }
     let main = (0..n_photos).max_by_key(|&r| (size[r], std::cmp::Reverse(r))).unwrap_or(0);
+    let mut set_of_root: HashMap<usize, usize> = HashMap::new();
+    let mut set = vec![None; n_photos];
     for p in 0..n_photos {
-        if active[p] && root(&mut parent, p) != main {
-            active[p] = false;
+        if !active[p] {
+            continue;
+        }
+        let r = root(&mut parent, p);
+        if all_sets || r == main {
+            let next = set_of_root.len();
+            set[p] = Some(*set_of_root.entry(r).or_insert(next));
+        } else {
             reasons.push((p as u32, "not linked by shared points to the largest set of photos".into()));
         }
     }
     reasons.sort_by_key(|r| r.0);
-    (active, reasons)
+    (set, reasons)
 }
 
 pub(super) fn run(
@@ -153,7 +166,9 @@ pub(super) fn run(
         }
     }
     let pairs: Vec<(usize, u32)> = cells.iter().map(|&(i, c, ..)| (i, c)).collect();
-    let (active, unconstrained) = linked_photos(n_photos, &pairs, observations);
+    let (set, unconstrained) = linked_photos(n_photos, &pairs, observations, mode != ResponseMode::Estimate);
+    let active: Vec<bool> = set.iter().map(Option::is_some).collect();
+    let n_sets = set.iter().flatten().max().map_or(0, |&s| s + 1);
     let linked = active.iter().filter(|&&a| a).count();
     if linked < 2 {
         return Err(CalibrateError::TooFewLinked { linked, photos: n_photos });
@@ -212,7 +227,7 @@ pub(super) fn run(
             })
         })
         .collect();
-    let layout = Layout { curves, gain, per_photo, beta, n };
+    let layout = Layout { curves, gain, set, n_sets, per_photo, beta, n };
     // A known response is trusted over its whole range: every row, Huber's weights, then Tukey's. An
     // estimated one uses mid codes only (see START_CODES) and Huber's weights throughout: the exponent gauge
     // is not a symmetry of Tukey's bounded loss, and the biweight finds it cheaper to reject every row of one
@@ -280,16 +295,28 @@ pub(super) fn run(
 /// ones) are the response's provisional scale gauge.
 fn add_gauges(problem: &mut Problem, layout: &Layout, opts: &CalibrationOptions, total_w: f64) -> usize {
     let solved: Vec<usize> = layout.gain.iter().flatten().copied().collect();
+    // One gauge per linked set: nothing relates the gains of photos that share no point.
+    let sets: Vec<Vec<usize>> = (0..layout.n_sets)
+        .map(|s| {
+            layout.gain.iter().zip(&layout.set).filter(|(_, set)| **set == Some(s)).filter_map(|(g, _)| *g).collect()
+        })
+        .collect();
     match layout.per_photo {
-        1 => problem.constraints.push(Constraint { entries: solved.iter().map(|&g| (g, 1.0)).collect(), target: 0.0 }),
+        1 => {
+            for set in &sets {
+                problem.constraints.push(Constraint { entries: set.iter().map(|&g| (g, 1.0)).collect(), target: 0.0 });
+            }
+        }
         3 => {
             // Without a common exposure every photo's channels multiply to 1; the per-channel means then
             // need only two constraints (the third is implied).
             let channels = if opts.exposure { 3 } else { 2 };
-            for c in 0..channels {
-                problem
-                    .constraints
-                    .push(Constraint { entries: solved.iter().map(|&g| (g + c, 1.0)).collect(), target: 0.0 });
+            for set in &sets {
+                for c in 0..channels {
+                    problem
+                        .constraints
+                        .push(Constraint { entries: set.iter().map(|&g| (g + c, 1.0)).collect(), target: 0.0 });
+                }
             }
             if !opts.exposure {
                 for &g in &solved {

@@ -12,6 +12,10 @@ pub(super) struct Layout {
     pub curves: usize,
     /// First gain unknown of each solved photo.
     pub gain: Vec<Option<usize>>,
+    /// Each photo's linked set (`None` = not solved), and how many sets there are: each set's gains have
+    /// their own gauge.
+    pub set: Vec<Option<usize>>,
+    pub n_sets: usize,
     /// Gains per photo: 0 (none), 1 (exposure) or 3 (per channel).
     pub per_photo: usize,
     /// First vignetting unknown of each group.
@@ -213,6 +217,7 @@ pub(super) fn finish(
     }
     Calibration {
         gains,
+        linked_sets: layout.n_sets,
         unconstrained,
         vignetting,
         vignetting_estimated,

@@ -13,7 +13,9 @@
 
 use glam::{DVec3, Vec3};
 use ingest::View;
-use ingest::photo::calibrate::{Calibration, CalibrationOptions, Observation, ResponseMode, normalised_r2};
+use ingest::photo::calibrate::{
+    CalibrateError, Calibration, CalibrationOptions, Observation, ResponseMode, normalised_r2,
+};
 use ingest::photo::{DecodedImage, read_image};
 use optim::streams::{draw, uniform};
 use rayon::prelude::*;
@@ -220,6 +222,6 @@ pub fn camera_groups(views: &[&View]) -> Vec<u32> {
 }
 
 /// Runs the estimator on the observations.
-pub fn solve(overlap: &Overlap, groups: &[u32], opts: &CalibrationOptions) -> Result<Calibration, String> {
-    ingest::photo::calibrate::calibrate(groups, &overlap.observations, opts).map_err(|e| e.to_string())
+pub fn solve(overlap: &Overlap, groups: &[u32], opts: &CalibrationOptions) -> Result<Calibration, CalibrateError> {
+    ingest::photo::calibrate::calibrate(groups, &overlap.observations, opts)
 }

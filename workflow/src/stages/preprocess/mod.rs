@@ -4,7 +4,10 @@
 //! When `[images]` asks for any photometric estimate (per-photo exposure or white balance, vignetting, an
 //! estimated response), the photos' overlap calibrates them first ([`calibration`]) and each photo is then
 //! linearised with the estimated response and divided by its gains and its camera's vignetting; photos whose
-//! gain the overlap cannot constrain are reported and left out.
+//! gain the overlap cannot constrain are reported and left out. When the photos cannot be compared at all
+//! (fewer than two share enough surface: a single photo, or photos of disjoint parts of a scan) and the
+//! response is not to be estimated, the stage says so and prepares every photo with one exposure and white
+//! balance, as `"fixed"` does; an estimated response has no such fallback and is an error.
 //!
 //! Artefacts in `output.path/preprocess/` ([`crate::artefacts::preprocess`] reads them back): `<view>.exr` +
 //! `<view>.json` per view (ingest's photo cache: R, G, B, mask and the prepared pinhole camera), `views.json` =
@@ -18,6 +21,7 @@ use std::path::{Path, PathBuf};
 
 use ingest::View;
 use ingest::photo::PhotoOptions;
+use ingest::photo::calibrate::{CalibrateError, ResponseMode};
 use rayon::prelude::*;
 
 use crate::artefacts::ingest::Ingested;
@@ -48,12 +52,19 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     }
     let base = PhotoOptions { downscale: ctx.plan.images.downscale, ..PhotoOptions::default() };
     let mut outputs_extra = Vec::new();
-    let (chosen, per_view): (Vec<&View>, Vec<PhotoOptions>) = if ctx.plan.images.calibrates() {
-        let (kept, file) = calibrate(ctx, &scene, &chosen, &base)?;
+    let calibrated = if ctx.plan.images.calibrates() { calibrate(ctx, &scene, &chosen, &base)? } else { None };
+    let (chosen, per_view): (Vec<&View>, Vec<PhotoOptions>) = if let Some((kept, file)) = calibrated {
         write_json_atomic(&ctx.dir.join(CALIBRATION_FILE), &file)?;
         outputs_extra.push(PathBuf::from("preprocess").join(CALIBRATION_FILE));
         kept.into_iter().unzip()
     } else {
+        // A calibration of an earlier run with other settings must not reach the later stages.
+        match std::fs::remove_file(ctx.dir.join(CALIBRATION_FILE)) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(StageError::Io { path: ctx.dir.join(CALIBRATION_FILE), source: e });
+            }
+            _ => {}
+        }
         let n = chosen.len();
         (chosen, vec![base; n])
     };
@@ -93,14 +104,15 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
 }
 
 /// The photometric calibration: observes the chosen views' overlap, solves, reports, and returns the views
-/// kept with the options that prepare each, and the `calibration.json` record.
+/// kept with the options that prepare each, and the `calibration.json` record; `None` when the photos cannot
+/// be compared and nothing requires the comparison (see the module docs).
 #[allow(clippy::type_complexity)]
 fn calibrate<'a>(
     ctx: &StageContext<'_>,
     scene: &Ingested,
     chosen: &[&'a View],
     base: &PhotoOptions,
-) -> Result<(Vec<(&'a View, PhotoOptions)>, CalibrationFile), StageError> {
+) -> Result<Option<(Vec<(&'a View, PhotoOptions)>, CalibrationFile)>, StageError> {
     let cfg = &ctx.plan.images;
     let seed = ctx.plan.object.seed;
     let overlap = {
@@ -109,8 +121,19 @@ fn calibrate<'a>(
     };
     let groups = calibration::camera_groups(chosen);
     let opts = calibration::options(cfg, overlap.mode, seed);
-    let cal = calibration::solve(&overlap, &groups, &opts)
-        .map_err(|message| StageError::Artefact { path: ctx.plan.config_path.clone(), message })?;
+    let cal = match calibration::solve(&overlap, &groups, &opts) {
+        Ok(cal) => cal,
+        Err(e @ (CalibrateError::TooFewLinked { .. } | CalibrateError::NoObservations))
+            if opts.response != ResponseMode::Estimate =>
+        {
+            ctx.note(&format!(
+                "photometric calibration skipped: {e}; every photo keeps one exposure and white balance and no \
+                 vignetting"
+            ));
+            return Ok(None);
+        }
+        Err(e) => return Err(StageError::Artefact { path: ctx.plan.config_path.clone(), message: e.to_string() }),
+    };
     let names: Vec<String> = chosen.iter().map(|v| v.name.clone()).collect();
     let file = CalibrationFile::new(&names, &groups, &opts, overlap.points, overlap.observations.len(), &cal);
     ctx.note(&file.summary());
@@ -132,7 +155,7 @@ fn calibrate<'a>(
             Some((*v, opts))
         })
         .collect();
-    Ok((kept, file))
+    Ok(Some((kept, file)))
 }
 
 #[cfg(test)]
