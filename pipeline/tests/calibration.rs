@@ -97,3 +97,36 @@ fn consumer_camera_scan_calibrates_up_to_one_common_power() {
         );
     }
 }
+
+/// The default config estimates per-photo exposure and white balance. A single photo cannot be compared with
+/// another: the stage says so and prepares it with one exposure instead of failing. A later run that does not
+/// calibrate removes the calibration an earlier run left, so that no later stage reads stale estimates.
+#[test]
+fn one_photo_falls_back_to_one_exposure_and_a_stale_calibration_is_removed() {
+    let dir = tempfile::tempdir().unwrap();
+    copy_dir(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../data-fixtures/demo")), &dir.path().join("scan"));
+    let out = dir.path().join("out");
+    let run = |images: &str| {
+        let cfg = dir.path().join("run.toml");
+        std::fs::write(&cfg, format!("[scan]\npath = \"scan\"\n[output]\npath = \"out\"\n[images]\n{images}\n"))
+            .unwrap();
+        pipeline(&["run", cfg.to_str().unwrap(), "--until", "preprocess"])
+    };
+    // The defaults, all eight photos: calibrated.
+    let (code, err) = run("");
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("calibrated 8 of 8 views"), "{err}");
+    assert!(workflow::artefacts::preprocess::CalibrationFile::read(&out).unwrap().is_some());
+    // Fixed exposure and white balance: nothing to calibrate, and the earlier estimates are gone.
+    let (code, err) = run("exposure = \"fixed\"\nwhite_balance = \"fixed\"");
+    assert_eq!(code, 0, "{err}");
+    assert!(workflow::artefacts::preprocess::CalibrationFile::read(&out).unwrap().is_none(), "{err}");
+    // The defaults, one photo: the fallback.
+    let (code, err) = run("every = 8");
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("photometric calibration skipped"), "{err}");
+    assert!(workflow::artefacts::preprocess::CalibrationFile::read(&out).unwrap().is_none());
+    let views: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("preprocess/views.json")).unwrap()).unwrap();
+    assert_eq!(views["views"].as_array().unwrap().len(), 1);
+}
