@@ -102,6 +102,13 @@ pub enum StageError {
     /// An artefact of an earlier stage (or the config) is not what this stage needs.
     #[error("{path}: {message}", path = .path.display())]
     Artefact { path: PathBuf, message: String },
+    /// An artefact written in another format version, by another version of the pipeline: a stage's freshness
+    /// looks at its config and inputs, not at the program that wrote it, so the error says how to redo it.
+    #[error(
+        "{path}: format `{found}` is not `{expected}` (written by another version of the pipeline: rerun from that stage with `--from {stage}`)",
+        path = .path.display()
+    )]
+    OldFormat { path: PathBuf, found: String, expected: &'static str, stage: &'static str },
     #[error(transparent)]
     Scan(#[from] ::ingest::IngestError),
     #[error(transparent)]

@@ -54,9 +54,11 @@ impl Ingested {
         let index: SceneIndex = serde_json::from_str(&text)
             .map_err(|e| StageError::Artefact { path: scene_path.clone(), message: e.to_string() })?;
         if index.format != SCENE_FORMAT {
-            return Err(StageError::Artefact {
+            return Err(StageError::OldFormat {
                 path: scene_path,
-                message: format!("format `{}` is not `{SCENE_FORMAT}`", index.format),
+                found: index.format,
+                expected: SCENE_FORMAT,
+                stage: "ingest",
             });
         }
         let mesh_path = dir.join(MESH_FILE);

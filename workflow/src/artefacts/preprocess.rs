@@ -193,7 +193,12 @@ impl CalibrationFile {
         let file: Self = serde_json::from_str(&text)
             .map_err(|e| StageError::Artefact { path: path.clone(), message: e.to_string() })?;
         if file.format != CALIBRATION_FORMAT {
-            return Err(StageError::Artefact { path, message: format!("format is not `{CALIBRATION_FORMAT}`") });
+            return Err(StageError::OldFormat {
+                path,
+                found: file.format,
+                expected: CALIBRATION_FORMAT,
+                stage: "preprocess",
+            });
         }
         Ok(Some(file))
     }
@@ -230,7 +235,12 @@ impl Prepared {
         let list: ViewList = serde_json::from_str(&text)
             .map_err(|e| StageError::Artefact { path: list_path.clone(), message: e.to_string() })?;
         if list.format != VIEWS_FORMAT {
-            return Err(StageError::Artefact { path: list_path, message: format!("format is not `{VIEWS_FORMAT}`") });
+            return Err(StageError::OldFormat {
+                path: list_path,
+                found: list.format,
+                expected: VIEWS_FORMAT,
+                stage: "preprocess",
+            });
         }
         let loaded: Vec<(ingest::camera::Camera, LinearImage)> = list
             .views
@@ -267,4 +277,21 @@ pub fn raise_to_exponent(images: &mut [LinearImage], exponent: [f64; 3]) {
             }
         }
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_older_format_names_the_file_and_the_stage_to_rerun() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join("preprocess")).unwrap();
+        std::fs::write(dir.path().join("preprocess").join(VIEWS_FILE), r#"{"format": "ipt-views/0", "views": []}"#)
+            .unwrap();
+        let Err(err) = Prepared::read(dir.path()) else { panic!("an older format is refused") };
+        let err = err.to_string();
+        assert!(err.contains("views.json") && err.contains("`ipt-views/0`"), "{err}");
+        assert!(err.contains("--from preprocess"), "{err}");
+    }
 }

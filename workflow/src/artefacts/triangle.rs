@@ -35,7 +35,7 @@ pub fn read_result(run_dir: &Path) -> Result<Option<TriangleState>, StageError> 
     let r: ResultFile =
         serde_json::from_str(&text).map_err(|e| StageError::Artefact { path: path.clone(), message: e.to_string() })?;
     if r.format != RESULT_FORMAT {
-        return Err(StageError::Artefact { path, message: format!("format `{}` is not `{RESULT_FORMAT}`", r.format) });
+        return Err(StageError::OldFormat { path, found: r.format, expected: RESULT_FORMAT, stage: "triangle" });
     }
     Ok(Some(r.state))
 }
