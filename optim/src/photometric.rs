@@ -60,8 +60,8 @@ pub fn render_misfit(
 
 /// The misfit of one trial of the search: `params` fitted to the photos raised to `exponent`, judged on
 /// `holdout` (targets from the photos as given, raised here by the rule that raises the photos,
-/// `ingest::photo::calibrate::raise_linear`) by [`render_misfit`], and returned in the photos' original log units (raising to e scales every
-/// log residual by e, so each mean square is divided by e²).
+/// `ingest::photo::calibrate::raise_linear`) by [`render_misfit`], and returned in the photos' original log
+/// units (raising to e scales every log residual by e, so each mean square is divided by e²).
 #[allow(clippy::too_many_arguments)]
 pub fn trial_misfit(
     scene: &Scene,

@@ -168,7 +168,6 @@ pub(super) fn run(
     let pairs: Vec<(usize, u32)> = cells.iter().map(|&(i, c, ..)| (i, c)).collect();
     let (set, unconstrained) = linked_photos(n_photos, &pairs, observations, mode != ResponseMode::Estimate);
     let active: Vec<bool> = set.iter().map(Option::is_some).collect();
-    let n_sets = set.iter().flatten().max().map_or(0, |&s| s + 1);
     let linked = active.iter().filter(|&&a| a).count();
     if linked < 2 {
         return Err(CalibrateError::TooFewLinked { linked, photos: n_photos });
@@ -227,7 +226,7 @@ pub(super) fn run(
             })
         })
         .collect();
-    let layout = Layout { curves, gain, set, n_sets, per_photo, beta, n };
+    let layout = Layout { curves, gain, set, per_photo, beta, n };
     // A known response is trusted over its whole range: every row, Huber's weights, then Tukey's. An
     // estimated one uses mid codes only (see START_CODES) and Huber's weights throughout: the exponent gauge
     // is not a symmetry of Tukey's bounded loss, and the biweight finds it cheaper to reject every row of one
@@ -296,7 +295,7 @@ pub(super) fn run(
 fn add_gauges(problem: &mut Problem, layout: &Layout, opts: &CalibrationOptions, total_w: f64) -> usize {
     let solved: Vec<usize> = layout.gain.iter().flatten().copied().collect();
     // One gauge per linked set: nothing relates the gains of photos that share no point.
-    let sets: Vec<Vec<usize>> = (0..layout.n_sets)
+    let sets: Vec<Vec<usize>> = (0..layout.n_sets())
         .map(|s| {
             layout.gain.iter().zip(&layout.set).filter(|(_, set)| **set == Some(s)).filter_map(|(g, _)| *g).collect()
         })

@@ -12,10 +12,8 @@ pub(super) struct Layout {
     pub curves: usize,
     /// First gain unknown of each solved photo.
     pub gain: Vec<Option<usize>>,
-    /// Each photo's linked set (`None` = not solved), and how many sets there are: each set's gains have
-    /// their own gauge.
+    /// Each photo's linked set (`None` = not solved), numbered from 0: each set's gains have their own gauge.
     pub set: Vec<Option<usize>>,
-    pub n_sets: usize,
     /// Gains per photo: 0 (none), 1 (exposure) or 3 (per channel).
     pub per_photo: usize,
     /// First vignetting unknown of each group.
@@ -27,6 +25,11 @@ impl Layout {
     /// First knot unknown of channel `c`'s curve (with `curves > 0`).
     pub fn curve(&self, c: usize) -> usize {
         if self.curves == 3 { c * KNOTS } else { 0 }
+    }
+
+    /// How many linked sets the solved photos form.
+    pub fn n_sets(&self) -> usize {
+        self.set.iter().flatten().max().map_or(0, |&s| s + 1)
     }
 
     /// Channel `c`'s knot values.
@@ -217,7 +220,7 @@ pub(super) fn finish(
     }
     Calibration {
         gains,
-        linked_sets: layout.n_sets,
+        linked_sets: layout.n_sets(),
         unconstrained,
         vignetting,
         vignetting_estimated,

@@ -28,7 +28,7 @@ use crate::artefacts::ingest::Ingested;
 use crate::artefacts::preprocess::{CALIBRATION_FILE, CalibrationFile, VIEWS_FILE, VIEWS_FORMAT, ViewList};
 use crate::atomic_file::write_json_atomic;
 use crate::config::ImagesConfig;
-use crate::stage_contract::{StageContext, StageError};
+use crate::stage_contract::{StageContext, StageError, remove_if_present};
 
 /// The views `images.cameras` and `images.every` select, in scan order. Errors name a listed camera the scan
 /// does not have.
@@ -59,12 +59,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         kept.into_iter().unzip()
     } else {
         // A calibration of an earlier run with other settings must not reach the later stages.
-        match std::fs::remove_file(ctx.dir.join(CALIBRATION_FILE)) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                return Err(StageError::Io { path: ctx.dir.join(CALIBRATION_FILE), source: e });
-            }
-            _ => {}
-        }
+        remove_if_present(ctx.dir.join(CALIBRATION_FILE))?;
         let n = chosen.len();
         (chosen, vec![base; n])
     };
