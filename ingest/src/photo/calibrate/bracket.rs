@@ -3,7 +3,7 @@
 //! [`Observation`]s; the photos form one camera group and vignetting is not estimated (every photo sees a point
 //! at the same radius, so vignetting is indistinguishable from radiance).
 
-use super::{CalibrateError, Calibration, CalibrationOptions, Observation, calibrate};
+use super::{CalibrateError, Calibration, CalibrationOptions, Observation, SplitMix64, calibrate};
 use crate::photo::image_io::DisplayImage;
 
 /// Pixel positions sampled uniformly: 2000 points × N photos × 3 channels is ample for ~150 unknowns
@@ -41,19 +41,6 @@ fn roughness(img: &DisplayImage, i: usize) -> u16 {
         }
     }
     m
-}
-
-/// SplitMix64 (Steele, Lea & Flood 2014): a tiny, well-mixed seeded generator.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
 }
 
 /// Calibrates an aligned bracket (≥ 2 images of equal size): samples pixel positions with `opts.seed` ([`SAMPLES`]

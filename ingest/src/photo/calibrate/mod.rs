@@ -26,12 +26,14 @@
 //! [`calibrate_bracket`] (`bracket`) is the front end for an aligned exposure bracket.
 
 mod bracket;
+mod check;
 mod model;
 pub mod response;
 mod result;
 mod solve;
 
 pub use bracket::calibrate_bracket;
+pub use check::HeldOutCheck;
 pub use response::GammaSource;
 
 use super::response::ResponseCurve;
@@ -164,6 +166,24 @@ pub struct Calibration {
     pub clipped_channels: usize,
     /// (Observation, channel) pairs that entered the solve but ended with robust weight 0 (outliers).
     pub rejected_channels: usize,
+    /// The calibration against one exposure on held-out observations ([`HeldOutCheck`]); `None` when it was
+    /// not run (an estimated response, or nothing but the response to calibrate) or the halves could not be
+    /// fitted.
+    pub held_out: Option<HeldOutCheck>,
+}
+
+/// SplitMix64 (Steele, Lea & Flood 2014): a tiny, well-mixed seeded generator (the bracket's pixel positions,
+/// the held-out check's halves of the points).
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
 }
 
 /// Why calibration could not run.
@@ -183,6 +203,12 @@ pub enum CalibrateError {
     Singular,
     #[error("bracket: {0}")]
     Bracket(String),
+    #[error(
+        "the calibrated gains and vignetting predict the observations they were not fitted to no better than one \
+         exposure (absolute log residual {:+.4} per point and channel, t = {:.1} over {} of them; needs t > {})",
+        -.0.gain, .0.t, .0.groups, check::T_KEEP
+    )]
+    NotSupported(HeldOutCheck),
 }
 
 /// A linear value `v` of a photo whose response is known only up to a power, raised to `exponent`: the
@@ -225,5 +251,13 @@ pub fn calibrate(
     if opts.response == ResponseMode::Estimate && !opts.exposure && !opts.white_balance {
         return Err(CalibrateError::ResponseWithoutGains);
     }
-    model::run(photo_groups, observations, opts)
+    let mut cal = model::run(photo_groups, observations, opts)?;
+    // With a known response, gains and vignetting are kept only where the photos call for them.
+    if opts.response != ResponseMode::Estimate && (opts.exposure || opts.white_balance || opts.vignetting) {
+        cal.held_out = check::held_out(photo_groups, observations, opts, |o| model::run(photo_groups, o, opts))?;
+        if let Some(check) = cal.held_out.filter(|c| !c.supports()) {
+            return Err(CalibrateError::NotSupported(check));
+        }
+    }
+    Ok(cal)
 }

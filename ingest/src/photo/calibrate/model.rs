@@ -46,7 +46,7 @@ const REF_CODE: f64 = 128.0 / 255.0;
 const GAUGE_CODES: (f64, f64) = (64.0 / 255.0, 192.0 / 255.0);
 
 /// Whether channel value `v` is usable, and its `ln` radiance (known response) and base weight.
-fn usable(v: f32, mode: ResponseMode) -> Option<(f64, f64)> {
+pub(super) fn usable(v: f32, mode: ResponseMode) -> Option<(f64, f64)> {
     let v = f64::from(v);
     if !v.is_finite() {
         return None;

@@ -232,5 +232,6 @@ pub(super) fn finish(
         used_observations: used.iter().filter(|&&u| u).count(),
         clipped_channels,
         rejected_channels,
+        held_out: None,
     }
 }

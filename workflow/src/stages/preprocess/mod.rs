@@ -5,8 +5,9 @@
 //! estimated response), the photos' overlap calibrates them first ([`calibration`]) and each photo is then
 //! linearised with the estimated response and divided by its gains and its camera's vignetting; photos whose
 //! gain the overlap cannot constrain are reported and left out. When the photos cannot be compared at all
-//! (fewer than two share enough surface: a single photo, or photos of disjoint parts of a scan) and the
-//! response is not to be estimated, the stage says so and prepares every photo with one exposure and white
+//! (fewer than two share enough surface: a single photo, or photos of disjoint parts of a scan), or the
+//! estimates predict held-out observations no better than one exposure (`CalibrateError::NotSupported`), and
+//! the response is not to be estimated, the stage says so and prepares every photo with one exposure and white
 //! balance, as `"fixed"` does; an estimated response has no such fallback and is an error.
 //!
 //! Artefacts in `output.path/preprocess/` ([`crate::artefacts::preprocess`] reads them back): `<view>.exr` +
@@ -118,9 +119,10 @@ fn calibrate<'a>(
     let opts = calibration::options(cfg, overlap.mode, seed);
     let cal = match calibration::solve(&overlap, &groups, &opts) {
         Ok(cal) => cal,
-        Err(e @ (CalibrateError::TooFewLinked { .. } | CalibrateError::NoObservations))
-            if opts.response != ResponseMode::Estimate =>
-        {
+        Err(
+            e
+            @ (CalibrateError::TooFewLinked { .. } | CalibrateError::NoObservations | CalibrateError::NotSupported(_)),
+        ) if opts.response != ResponseMode::Estimate => {
             ctx.note(&format!(
                 "photometric calibration skipped: {e}; every photo keeps one exposure and white balance and no \
                  vignetting"
