@@ -57,6 +57,8 @@ pub mod draw {
     /// Model selection: which of the test pixels an emitter's light reaches its emission test uses, when more
     /// than the budget (keyed by the pixel and the object).
     pub const EMISSION_TEST: u64 = 7;
+    /// Model selection: the order in which the lobe test looks at an object's pixels (keyed by the pixel).
+    pub const LOBE_TEST_ORDER: u64 = 8;
     /// Per-triangle fit: the pixels of a light solve (keyed by its [`super::key::triangle`] key).
     pub const TRIANGLE_EMISSION_PIXELS: u64 = 0x7265;
     /// Per-triangle fit: the pixels of an Adam batch (keyed by its [`super::key::triangle`] key).

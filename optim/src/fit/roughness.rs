@@ -27,6 +27,11 @@ use tracer::{PixelRef, TracerError};
 /// Coarse grid of the search: spans the domain with finer steps at low roughness, where the lobe changes
 /// fastest (its width is α = r²).
 pub const GRID: [f64; 7] = [0.04, 0.12, 0.22, 0.33, 0.45, 0.62, 0.85];
+/// The grid points evaluated first (indices into [`GRID`]: 0.04, 0.22, 0.45, 0.85). When the profile is
+/// flat over them ([`FLAT_PROFILE`]) the other three are not evaluated: the lobe's effect on the photos changes
+/// smoothly with its width α = r², so a profile that varies by less than 0.5 % between r = 0.04 and 0.22 and
+/// on to 0.85 does not dip by more in between. A diffuse wall's search then costs 4 evaluations instead of 7.
+pub const COARSE: [usize; 4] = [0, 2, 4, 6];
 /// Golden-section steps inside the bracket around the best grid point: the bracket (at most 0.4 wide) shrinks
 /// by 0.618 per step, to < 0.023 after 6 steps, so the chosen point is within ~0.012 of the bracket's
 /// minimum — well below the required roughness tolerance of 0.05.
@@ -130,18 +135,38 @@ pub fn search(
         evals.push(p);
         Ok(p)
     };
-    let grid: Vec<ProfilePoint> = GRID.iter().map(|&r| eval(r, &mut evals)).collect::<Result<_, _>>()?;
-    let best = (0..grid.len()).min_by(|&a, &b| grid[a].loss.total_cmp(&grid[b].loss)).unwrap_or(0);
-    let worst = grid.iter().map(|p| p.loss).fold(0.0, f64::max);
     let mean_target = samples.iter().map(|t| f64::from(t.target.abs().element_sum()) / 3.0).sum::<f64>()
         / samples.len().max(1) as f64;
-    if worst - grid[best].loss < FLAT_PROFILE * mean_target {
-        return Ok((grid[best], evals));
+    // The coarse points first; the others only where the profile is not flat over them.
+    let mut grid: Vec<Option<ProfilePoint>> = vec![None; GRID.len()];
+    for &i in &COARSE {
+        grid[i] = Some(eval(GRID[i], &mut evals)?);
+    }
+    if !flat(&grid, mean_target) {
+        for i in 0..GRID.len() {
+            if grid[i].is_none() {
+                grid[i] = Some(eval(GRID[i], &mut evals)?);
+            }
+        }
+    }
+    let done: Vec<(usize, ProfilePoint)> = grid.iter().enumerate().filter_map(|(i, p)| p.map(|p| (i, p))).collect();
+    let (best, best_point) =
+        done.iter().copied().min_by(|a, b| a.1.loss.total_cmp(&b.1.loss)).expect("the coarse grid is not empty");
+    if flat(&grid, mean_target) {
+        return Ok((best_point, evals));
     }
     let lo = if best == 0 { 0.0 } else { GRID[best - 1] };
     let hi = if best + 1 == GRID.len() { 1.0 } else { GRID[best + 1] };
     golden(lo, hi, |r| eval(r, &mut evals))?;
-    Ok((lowest(&evals).unwrap_or(grid[0]), evals))
+    Ok((lowest(&evals).unwrap_or(best_point), evals))
+}
+
+/// Whether the profile varies over the evaluated grid points by less than [`FLAT_PROFILE`] of `mean_target`.
+fn flat(grid: &[Option<ProfilePoint>], mean_target: f64) -> bool {
+    let losses = || grid.iter().flatten().map(|p| p.loss);
+    let best = losses().fold(f64::INFINITY, f64::min);
+    let worst = losses().fold(0.0, f64::max);
+    worst - best < FLAT_PROFILE * mean_target
 }
 
 /// The evaluation with the lowest profile loss.

@@ -98,6 +98,40 @@ impl AveragedSteps {
     }
 }
 
+/// Pixels of an object at the lobe test's first look: the test looks at 256, 512, 1024, … of its pixels
+/// until it passes them all or [`futile`] stops it. 256 pixels put the standard error of a wall's mean paired
+/// difference well under the 0.5 % of [`MIN_GAIN`] (a diffuse wall's best lobe changes its L1 by 0.1–0.3 %,
+/// docs/optim/design-measurements.md), so most walls stop at the first look.
+const FIRST_LOOK: usize = 256;
+
+/// Whether an object's lobe test can stop after the paired differences `d` of its first pixels, because on
+/// all `n_full` of them it could not plausibly pass: the upper confidence bound of the mean gain, `mean +
+/// T_KEEP · se` (one-sided 0.1 %), is below what a pass needs, `MIN_GAIN · mean_target` or `T_KEEP` standard
+/// errors of the full sample (the standard deviation estimated from `d`). Stopping only objects that would
+/// fail keeps the test's false acceptances as they are; what it risks is a lobe lost with probability ≲ 0.1 %
+/// per object that a full test would keep.
+fn futile(d: &[f64], n_full: usize, mean_target: f64) -> bool {
+    let n = d.len();
+    if n < 2 || n >= n_full {
+        return false;
+    }
+    let mean = d.iter().sum::<f64>() / n as f64;
+    let sd = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+    let upper = mean + T_KEEP * sd / (n as f64).sqrt();
+    upper < MIN_GAIN * mean_target || upper < T_KEEP * sd / (n_full as f64).sqrt()
+}
+
+/// The paired differences of the lobe test on `rows` of `test`: L1 of the diffuse render minus L1 of the
+/// render with the lobes, per pixel (positive where the lobe fits better).
+fn lobe_differences(test: &[Sample], rows: &[usize], i_d: &[glam::Vec3], i_t: &[glam::Vec3]) -> Vec<f64> {
+    rows.iter()
+        .map(|&j| {
+            let t = &test[j];
+            l1(target(t), i_d[j].as_dvec3().to_array()) - l1(target(t), i_t[j].as_dvec3().to_array())
+        })
+        .collect()
+}
+
 /// Pixels per block of [`paired_renders`]: small enough that a house's lobe test (~3·10⁵ pixels at
 /// `holdout_spp`, minutes per render) reports its progress every few seconds, large enough that each block
 /// keeps both cores busy.
@@ -438,52 +472,99 @@ pub fn choose_models(
             xt[idx(k, METALLIC)] = best.metallic;
             progress.set_position(done as u64 + 1);
         }
-        // Common random numbers for both renders: the paired differences then carry little path noise.
+        // Common random numbers for both renders: the paired differences then carry little path noise. The
+        // test looks at each object's pixels in a fixed random order, first at [`FIRST_LOOK`] of them, then at
+        // twice as many per look up to all of them, and an object whose lobe cannot plausibly pass on all of
+        // them stops ([`futile`]); the rest are decided on exactly the pixels, random numbers and renders of a
+        // single look at all of them (random numbers are keyed by the pixel).
         let key = key::SELECT_LOBE_TEST;
-        let lobe_pix: Vec<PixelRef> = lobe_test.iter().map(|t| t.pixel).collect();
-        let (i_d, i_t) = paired_renders(
-            ctx,
-            (&layout::to_params(&x), &layout::to_params(&xt)),
-            &lobe_pix,
-            s.holdout_spp,
-            key,
-            progress,
-            &format!("model selection: lobe test on {} pixels, block", lobe_pix.len()),
-        )?;
-        for k in (0..k_count).filter(|&k| free[k]) {
-            let d: Vec<f64> = lobe_test
+        let order_rank = |t: &Sample| streams::uniform(ctx.seed, draw::LOBE_TEST_ORDER, streams::pixel_key(t.pixel), 0);
+        let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); k_count];
+        for (j, t) in lobe_test.iter().enumerate() {
+            if let Some(k) = t.object.map(|o| o as usize).filter(|&k| k < k_count && free[k]) {
+                rows_of[k].push(j);
+            }
+        }
+        for rows in &mut rows_of {
+            rows.sort_by(|&a, &b| order_rank(&lobe_test[a]).total_cmp(&order_rank(&lobe_test[b])).then(a.cmp(&b)));
+        }
+        let (params_d, params_t) = (layout::to_params(&x), layout::to_params(&xt));
+        let mut i_d = vec![glam::Vec3::ZERO; lobe_test.len()];
+        let mut i_t = vec![glam::Vec3::ZERO; lobe_test.len()];
+        let mut open: Vec<usize> = (0..k_count).filter(|&k| free[k] && !rows_of[k].is_empty()).collect();
+        let mut looked = vec![0usize; k_count];
+        let mut stopped: Vec<Option<usize>> = vec![None; k_count];
+        let mut n_look = FIRST_LOOK;
+        let mut rendered = 0usize;
+        let mut look = 1;
+        while !open.is_empty() {
+            let new_rows: Vec<usize> = open
                 .iter()
-                .enumerate()
-                .filter(|(_, t)| t.object == Some(k as u32))
-                .map(|(j, t)| {
-                    let a = i_d[j].as_dvec3().to_array();
-                    let b = i_t[j].as_dvec3().to_array();
-                    l1(target(t), a) - l1(target(t), b)
-                })
+                .flat_map(|&k| rows_of[k][looked[k]..rows_of[k].len().min(n_look)].iter().copied())
                 .collect();
+            let pix: Vec<PixelRef> = new_rows.iter().map(|&j| lobe_test[j].pixel).collect();
+            let (a, b) = paired_renders(
+                ctx,
+                (&params_d, &params_t),
+                &pix,
+                s.holdout_spp,
+                key,
+                progress,
+                &format!(
+                    "model selection: lobe test, look {look} ({} objects, {} pixels), block",
+                    open.len(),
+                    pix.len()
+                ),
+            )?;
+            rendered += pix.len();
+            for (i, &j) in new_rows.iter().enumerate() {
+                (i_d[j], i_t[j]) = (a[i], b[i]);
+            }
+            open.retain(|&k| {
+                looked[k] = rows_of[k].len().min(n_look);
+                if looked[k] == rows_of[k].len() {
+                    return false;
+                }
+                let d = lobe_differences(&lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
+                if futile(&d, rows_of[k].len(), mean_target) {
+                    stopped[k] = Some(looked[k]);
+                    return false;
+                }
+                true
+            });
+            n_look *= 2;
+            look += 1;
+        }
+        tracing::debug!(rendered, all = lobe_test.len(), "lobe test pixels rendered (two renders each)");
+        for k in (0..k_count).filter(|&k| free[k]) {
+            let d = lobe_differences(&lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
             let (gain, t) = paired_t(&d);
             let rel = gain / mean_target.max(f64::MIN_POSITIVE);
-            if t > T_KEEP && rel > MIN_GAIN {
+            let on = match stopped[k] {
+                Some(n) => {
+                    format!("{n} of its {} pixels (stopped there: on all of them it could not pass)", rows_of[k].len())
+                }
+                None => format!("{} pixels", d.len()),
+            };
+            if stopped[k].is_none() && t > T_KEEP && rel > MIN_GAIN {
                 glossy[k] = true;
                 for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
                     x[idx(k, p)] = xt[idx(k, p)];
                 }
                 why[k].push(format!(
-                    "specular lobe (roughness {:.3}, specular {:.3}, metallic {:.3}) kept: it lowers the {test_name} L1 by {:.1} % of the mean radiance on {} pixels (t = {t:.1})",
+                    "specular lobe (roughness {:.3}, specular {:.3}, metallic {:.3}) kept: it lowers the {test_name} L1 by {:.1} % of the mean radiance on {on} (t = {t:.1})",
                     xt[idx(k, ROUGHNESS)],
                     xt[idx(k, SPECULAR)],
                     xt[idx(k, METALLIC)],
                     100.0 * rel,
-                    d.len()
                 ));
             } else {
                 why[k].push(format!(
-                    "diffuse: the best specular lobe (roughness {:.3}, specular {:.3}, metallic {:.3}) changed the {test_name} L1 by {:+.2} % on {} pixels (t = {t:.1}; needs t > {T_KEEP} and > {:.1} %)",
+                    "diffuse: the best specular lobe (roughness {:.3}, specular {:.3}, metallic {:.3}) changed the {test_name} L1 by {:+.2} % on {on} (t = {t:.1}; needs t > {T_KEEP} and > {:.1} %)",
                     xt[idx(k, ROUGHNESS)],
                     xt[idx(k, SPECULAR)],
                     xt[idx(k, METALLIC)],
                     -100.0 * rel,
-                    d.len(),
                     100.0 * MIN_GAIN
                 ));
             }
