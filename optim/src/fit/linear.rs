@@ -269,13 +269,11 @@ pub fn group_corners(r: &[f64], groups: Option<&[u32]>, floor: f64) -> Vec<f64> 
 /// Mean and t-statistic of paired differences.
 #[must_use]
 pub fn paired_t(d: &[f64]) -> (f64, f64) {
-    let n = d.len() as f64;
     if d.len() < 2 {
         return (d.first().copied().unwrap_or(0.0), 0.0);
     }
-    let mean = d.iter().sum::<f64>() / n;
-    let var = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, t_statistic(mean, (var / n).sqrt()))
+    let (mean, se) = mean_se(d);
+    (mean, t_statistic(mean, se))
 }
 
 /// `mean / se`, with a zero standard error giving +∞ for a positive mean (every difference equal and
@@ -296,6 +294,13 @@ pub fn t_statistic(mean: f64, se: f64) -> f64 {
 /// rows). Var = Σ_h W_h² s_h² / n_h with W_h = n_h·w_h the stratum's share.
 #[must_use]
 pub fn stratified_t(d: &[f64], in_a: &[bool], w_a: f64, w_b: f64) -> (f64, f64) {
+    let (mean, se) = stratified_mean_se(d, in_a, w_a, w_b);
+    (mean, t_statistic(mean, se))
+}
+
+/// [`stratified_t`]'s mean and its standard error.
+#[must_use]
+pub fn stratified_mean_se(d: &[f64], in_a: &[bool], w_a: f64, w_b: f64) -> (f64, f64) {
     let mut mean = 0.0;
     let mut var = 0.0;
     for (flag, w) in [(true, w_a), (false, w_b)] {
@@ -312,7 +317,19 @@ pub fn stratified_t(d: &[f64], in_a: &[bool], w_a: f64, w_b: f64) -> (f64, f64) 
             var += share * share * s2 / n;
         }
     }
-    (mean, t_statistic(mean, var.sqrt()))
+    (mean, var.sqrt())
+}
+
+/// Mean and standard error of the mean of `d` (the paired test's; 0 for fewer than 2 values).
+#[must_use]
+pub fn mean_se(d: &[f64]) -> (f64, f64) {
+    let n = d.len() as f64;
+    if d.len() < 2 {
+        return (d.first().copied().unwrap_or(0.0), 0.0);
+    }
+    let mean = d.iter().sum::<f64>() / n;
+    let var = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
 }
 
 #[cfg(test)]
