@@ -292,6 +292,14 @@ fn emission_test_arm(
         .collect())
 }
 
+/// An emission test's estimates at one pixel: the render of the model, the render without the emission, and
+/// the emitter's base-colour column.
+struct ArmsAt {
+    pred: [f64; 3],
+    without: [f64; 3],
+    column: [f64; 3],
+}
+
 /// The last look of an emitter's test on the pixels its light reaches: the drawn test rows `on` (indices into
 /// the test pixels) with their pixels, photo values, stratum (the emitter's own pixels or others) and weights,
 /// the two arms (the model, and the model without the emission after `delta` on its base colour), and the
@@ -708,8 +716,7 @@ pub fn choose_models(
         // proportion), and stops when it cannot pass on all of them ([`cannot_pass`]); a test that goes on to all
         // of them is decided on exactly the renders of a single look (every estimate is keyed by the pixel).
         // Per test pixel: the two arms and k's base-colour column.
-        let mut cache: std::collections::HashMap<usize, ([f64; 3], [f64; 3], [f64; 3])> =
-            std::collections::HashMap::new();
+        let mut cache: std::collections::HashMap<usize, ArmsAt> = std::collections::HashMap::new();
         let mut look_size = FIRST_LOOK.min(n_full);
         let EmissionLook { on, px, tgt, is_own, row_w, pred, without, delta, gain, t, stopped } = loop {
             let part = |n: usize| if look_size >= n_full { n } else { (n * look_size).div_ceil(n_full) };
@@ -723,7 +730,7 @@ pub fn choose_models(
             let new_col =
                 if free[k] { base_color_column(ctx, s, &params, k, &new_px)? } else { vec![[0.0; 3]; new.len()] };
             for (i, &j) in new.iter().enumerate() {
-                cache.insert(j, (new_pred[i], new_without[i], new_col[i]));
+                cache.insert(j, ArmsAt { pred: new_pred[i], without: new_without[i], column: new_col[i] });
             }
             let (w_own, w_other) = (share(n_lit_own, a), share(n_lit_other, b));
             let px: Vec<PixelRef> = on.iter().map(|&j| pix[j]).collect();
@@ -733,9 +740,9 @@ pub fn choose_models(
             let row_w: Vec<f64> = is_own.iter().map(|&o| if o { w_own } else { w_other }).collect();
             // The same weights at mean 1 for the refit's solve.
             let solve_w: Vec<f64> = row_w.iter().map(|w| w * row_w.len() as f64).collect();
-            let pred: Vec<[f64; 3]> = on.iter().map(|j| cache[j].0).collect();
-            let mut without: Vec<[f64; 3]> = on.iter().map(|j| cache[j].1).collect();
-            let col: Vec<[f64; 3]> = on.iter().map(|j| cache[j].2).collect();
+            let pred: Vec<[f64; 3]> = on.iter().map(|j| cache[j].pred).collect();
+            let mut without: Vec<[f64; 3]> = on.iter().map(|j| cache[j].without).collect();
+            let col: Vec<[f64; 3]> = on.iter().map(|j| cache[j].column).collect();
             // The model without an object's emission gets its own best base colour: a visible surface's
             // emission and albedo both explain its brightness, and comparing at the albedo fitted *with* the
             // emission favours keeping it. Measured on a room lit by a small lamp 1e4× brighter than the walls
