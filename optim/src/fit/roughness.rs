@@ -142,7 +142,8 @@ pub fn search(
     for &i in &COARSE {
         grid[i] = Some(eval(GRID[i], &mut evals)?);
     }
-    if !flat(&grid, mean_target) {
+    let flat = flat(&grid, mean_target);
+    if !flat {
         for i in 0..GRID.len() {
             if grid[i].is_none() {
                 grid[i] = Some(eval(GRID[i], &mut evals)?);
@@ -152,7 +153,8 @@ pub fn search(
     let done: Vec<(usize, ProfilePoint)> = grid.iter().enumerate().filter_map(|(i, p)| p.map(|p| (i, p))).collect();
     let (best, best_point) =
         done.iter().copied().min_by(|a, b| a.1.loss.total_cmp(&b.1.loss)).expect("the coarse grid is not empty");
-    if flat(&grid, mean_target) {
+    // More points only widen the profile's spread: a profile not flat over the coarse points is not flat over all.
+    if flat {
         return Ok((best_point, evals));
     }
     let lo = if best == 0 { 0.0 } else { GRID[best - 1] };

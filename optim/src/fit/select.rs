@@ -309,7 +309,8 @@ struct EmissionLook {
     px: Vec<PixelRef>,
     tgt: Vec<[f64; 3]>,
     is_own: Vec<bool>,
-    row_w: Vec<f64>,
+    /// The mean photo L1 over all lit pixels (the stratified estimate), which the gain is relative to.
+    mean_lit: f64,
     pred: Vec<[f64; 3]>,
     without: Vec<[f64; 3]>,
     delta: [f64; 3],
@@ -543,7 +544,7 @@ pub fn choose_models(
         let mut i_t = vec![glam::Vec3::ZERO; lobe_test.len()];
         let mut open: Vec<usize> = (0..k_count).filter(|&k| free[k] && !rows_of[k].is_empty()).collect();
         let mut looked = vec![0usize; k_count];
-        let mut stopped: Vec<Option<usize>> = vec![None; k_count];
+        let mut stopped = vec![false; k_count];
         let mut n_look = FIRST_LOOK;
         let mut rendered = 0usize;
         let mut look = 1;
@@ -578,7 +579,7 @@ pub fn choose_models(
                 let d = lobe_differences(&lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
                 let (mean, se) = linear::mean_se(&d);
                 if cannot_pass(mean, se, d.len(), rows_of[k].len(), MIN_GAIN * mean_target) {
-                    stopped[k] = Some(looked[k]);
+                    stopped[k] = true;
                     return false;
                 }
                 true
@@ -591,13 +592,16 @@ pub fn choose_models(
             let d = lobe_differences(&lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
             let (gain, t) = paired_t(&d);
             let rel = gain / mean_target.max(f64::MIN_POSITIVE);
-            let on = match stopped[k] {
-                Some(n) => {
-                    format!("{n} of its {} pixels (stopped there: on all of them it could not pass)", rows_of[k].len())
-                }
-                None => format!("{} pixels", d.len()),
+            let on = if stopped[k] {
+                format!(
+                    "{} of its {} pixels (stopped there: on all of them it could not pass)",
+                    d.len(),
+                    rows_of[k].len()
+                )
+            } else {
+                format!("{} pixels", d.len())
             };
-            if stopped[k].is_none() && t > T_KEEP && rel > MIN_GAIN {
+            if !stopped[k] && t > T_KEEP && rel > MIN_GAIN {
                 glossy[k] = true;
                 for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
                     x[idx(k, p)] = xt[idx(k, p)];
@@ -718,7 +722,7 @@ pub fn choose_models(
         // Per test pixel: the two arms and k's base-colour column.
         let mut cache: std::collections::HashMap<usize, ArmsAt> = std::collections::HashMap::new();
         let mut look_size = FIRST_LOOK.min(n_full);
-        let EmissionLook { on, px, tgt, is_own, row_w, pred, without, delta, gain, t, stopped } = loop {
+        let EmissionLook { on, px, tgt, is_own, mean_lit, pred, without, delta, gain, t, stopped } = loop {
             let part = |n: usize| if look_size >= n_full { n } else { (n * look_size).div_ceil(n_full) };
             let (a, b) = (part(n_own), part(n_other));
             let mut on: Vec<usize> = own[..a].iter().chain(&other[..b]).copied().collect();
@@ -758,11 +762,10 @@ pub fn choose_models(
             let stop = !full && cannot_pass(gain, se, on.len(), n_full, MIN_GAIN * 1e-2 * mean_lit);
             if full || stop {
                 let t = linear::t_statistic(gain, se);
-                break EmissionLook { on, px, tgt, is_own, row_w, pred, without, delta, gain, t, stopped: stop };
+                break EmissionLook { on, px, tgt, is_own, mean_lit, pred, without, delta, gain, t, stopped: stop };
             }
             look_size *= 2;
         };
-        let mean_lit = tgt.iter().zip(&row_w).map(|(t, w)| w * l1(*t, [0.0; 3])).sum::<f64>();
         let rel = gain / mean_lit.max(f64::MIN_POSITIVE);
         let beats = |t: f64, rel: f64| t > T_KEEP && rel > MIN_GAIN * 1e-2;
         // An object the photos see may look like an emitter because it mirrors one: a rough metal beside a
