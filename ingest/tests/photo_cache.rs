@@ -1,4 +1,5 @@
-//! The prepared-view cache: exact round trip of camera, radiance and mask; errors that name the file.
+//! The prepared-view cache: round trip of camera and mask (exact) and radiance (within half float's 2⁻¹¹ of
+//! the image's maximum when half float keeps it, else exact); errors that name the file.
 
 use glam::{DMat4, DQuat, DVec3};
 use ingest::camera::{Camera, Distortion, Intrinsics};
@@ -18,23 +19,45 @@ fn camera(width: u32, height: u32) -> Camera {
     }
 }
 
+/// Values spanning eight decades below `top` (tiny, fractional, large) so that any lossy step shows.
+fn image_up_to(w: u32, h: u32, top: f32) -> LinearImage {
+    let rgb = (0..3 * w * h).map(|i| (i as f32 * 0.37).sin().abs() * top * 10f32.powi((i % 9) as i32 - 8)).collect();
+    let mask = (0..w * h).map(|i| u8::from(i % 5 != 0)).collect();
+    LinearImage::new(w, h, rgb, mask).unwrap()
+}
+
+/// An image whose values half float holds exactly (multiples of 1/64 up to 4).
 fn image(w: u32, h: u32) -> LinearImage {
-    // Values spanning the f32 range that matters (tiny, fractional, huge) so that any lossy step shows.
-    let rgb = (0..3 * w * h).map(|i| (i as f32 * 0.37).sin().abs() * 10f32.powi((i % 9) as i32 - 4)).collect();
+    let rgb = (0..3 * w * h).map(|i| (i % 257) as f32 / 64.0).collect();
     let mask = (0..w * h).map(|i| u8::from(i % 5 != 0)).collect();
     LinearImage::new(w, h, rgb, mask).unwrap()
 }
 
 #[test]
-fn cache_round_trip_is_exact() {
+fn cache_round_trip_keeps_every_value_within_its_bound() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run/views");
-    let (cam, img) = (camera(23, 17), image(23, 17));
-    let exr = write_cached(&run, "view_0007", &cam, &img).unwrap();
-    assert_eq!(exr, run.join("view_0007.exr"));
-    let (cam2, img2) = read_cached(&run, "view_0007").unwrap();
-    assert_eq!(cam2, cam);
-    assert_eq!(img2, img);
+    let cam = camera(23, 17);
+    // Half float's range (its maximum is 65504, its smallest normal 2⁻¹⁴): within 2⁻¹¹ of the maximum.
+    // Outside it, above or below: exact.
+    for (top, exact) in [(1.0, false), (6.0e4, false), (1.0e-3, false), (1.0e5, true), (1.0e-5, true)] {
+        let img = image_up_to(23, 17, top);
+        let exr = write_cached(&run, "view_0007", &cam, &img).unwrap();
+        assert_eq!(exr, run.join("view_0007.exr"));
+        let (cam2, img2) = read_cached(&run, "view_0007").unwrap();
+        assert_eq!(cam2, cam);
+        assert_eq!(img2.mask, img.mask);
+        let max = img.rgb.iter().fold(0.0_f32, |m, v| m.max(*v));
+        let worst = img.rgb.iter().zip(&img2.rgb).map(|(a, b)| (a - b).abs()).fold(0.0_f32, f32::max);
+        if exact {
+            assert_eq!(img2.rgb, img.rgb, "top {top}");
+        } else {
+            assert!(worst <= max / 2048.0 && worst > 0.0, "top {top}: worst {worst}, max {max}");
+        }
+    }
+    let img = image(23, 17);
+    write_cached(&run, "view_0007", &cam, &img).unwrap();
+    assert_eq!(read_cached(&run, "view_0007").unwrap().1, img);
     let entry = read_manifest(&run, "view_0007").unwrap();
     assert_eq!(entry.valid_pixels, img.valid_count());
     assert_eq!(entry.image, "view_0007.exr");

@@ -6,7 +6,7 @@
 //! is within 3 % of the truth. Also: a rerun resumes nothing and skips every stage, and `pipeline export
 //! RUN_DIR` rewrites the same mesh.ply.
 //!
-//! The run directory's `export/`, `triangle/result.json` and `ingest/scene.json` are copied to
+//! The run directory's `export/`, `triangle/result.json` + `triangle/mesh.ply` and `ingest/scene.json` are copied to
 //! `target/triangle_checker/` for tests/validation/test_triangle_export.py.
 
 mod common;
@@ -116,7 +116,10 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     let keep = workspace().join("target/triangle_checker");
     let _ = std::fs::remove_dir_all(&keep);
     copy_dir(&out.join("export"), &keep.join("export"));
-    std::fs::copy(out.join("triangle/result.json"), keep.join("result.json")).unwrap();
+    std::fs::create_dir_all(keep.join("triangle")).unwrap();
+    for f in ["result.json", "mesh.ply"] {
+        std::fs::copy(out.join("triangle").join(f), keep.join("triangle").join(f)).unwrap();
+    }
     std::fs::copy(out.join("ingest/scene.json"), keep.join("scene.json")).unwrap();
 }
 

@@ -24,7 +24,17 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), AtomicWriteError> {
 
 /// Serialises `value` as pretty JSON and writes it atomically.
 pub fn write_json_atomic<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), AtomicWriteError> {
-    let text = serde_json::to_vec_pretty(value).map_err(|e| AtomicWriteError {
+    write_json(path, serde_json::to_vec_pretty(value))
+}
+
+/// Serialises `value` as compact JSON (no whitespace) and writes it atomically: for files only the program
+/// reads back, such as checkpoints, where indentation would double the size of a large state.
+pub fn write_compact_json_atomic<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), AtomicWriteError> {
+    write_json(path, serde_json::to_vec(value))
+}
+
+fn write_json(path: &Path, text: serde_json::Result<Vec<u8>>) -> Result<(), AtomicWriteError> {
+    let text = text.map_err(|e| AtomicWriteError {
         path: path.to_path_buf(),
         source: ingest::IngestError::format(path, e.to_string()),
     })?;

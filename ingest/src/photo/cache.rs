@@ -1,5 +1,6 @@
-//! On-disk cache of prepared views in a run directory: `<name>.exr` holds channels R, G, B (32-bit float,
-//! linear radiance) and `mask` (32-bit float, exactly 0 or 1); `<name>.json` is the manifest entry (camera of
+//! On-disk cache of prepared views in a run directory: `<name>.exr` holds channels R, G, B (linear radiance;
+//! half float when that keeps every value within 2⁻¹¹ of the image's maximum, else 32-bit float, see
+//! [`super::exr::half_keeps`]) and `mask` (half float, exactly 0 or 1), ZIP-compressed; `<name>.json` is the manifest entry (camera of
 //! the prepared image, size, valid-pixel count). Both are written atomically with [`crate::write_atomic`]
 //! (temporary file in the same directory, fsync, rename), EXR first, so a manifest entry only exists for a
 //! complete image.
@@ -51,7 +52,7 @@ pub fn cached_paths(dir: &Path, name: &str) -> (PathBuf, PathBuf) {
     (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")))
 }
 
-/// Encodes `img` as an EXR (R, G, B, mask; 32-bit float, lossless compression).
+/// Encodes `img` as an EXR (R, G, B, mask; see [`super::exr::encode_rgb_mask`]).
 pub fn encode_exr(path: &Path, img: &LinearImage) -> Result<Vec<u8>, PhotoError> {
     let n = img.pixel_count();
     if img.rgb.len() != 3 * n || img.mask.len() != n {

@@ -111,8 +111,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::fit::ObjectFitSettings;
 
-/// Format tag of `triangle/result.json`.
-pub const RESULT_FORMAT: &str = "ipt-triangle/1";
+/// Format tag of the stage's result (`triangle/result.json` beside `triangle/mesh.ply`; the layout is the
+/// workflow's `artefacts::triangle`).
+pub const RESULT_FORMAT: &str = "ipt-triangle/2";
 
 /// A mesh with per-triangle materials and per-object emission: the state of the per-triangle fit.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -1,15 +1,16 @@
 //! Optimisation checkpoints of a stage (`<stage>/checkpoint.json`): the optimiser's state together with the
 //! hashes of the configuration and inputs it belongs to, the version of the program that wrote it and a
 //! digest of the state itself, so that a rerun resumes only the very same computation from an intact state.
-//! Written atomically; removed by the stage once its results are written. A checkpoint that is unreadable,
-//! damaged (its digest differs), from another version, or from another config or other inputs is refused
-//! with a message naming the reason, and the stage starts afresh: it can only cost the time to redo it.
+//! Written atomically, as compact JSON (only the program reads it); removed by the stage once its results
+//! are written. A checkpoint that is unreadable, damaged (its digest differs), from another version, or from
+//! another config or other inputs is refused with a message naming the reason, and the stage starts afresh:
+//! it can only cost the time to redo it.
 
 use std::path::Path;
 
 use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
-use crate::atomic_file::{AtomicWriteError, write_json_atomic};
+use crate::atomic_file::{AtomicWriteError, write_compact_json_atomic};
 use crate::manifest::sha256_json;
 use crate::stage_contract::{StageContext, StageError, remove_if_present};
 
@@ -48,7 +49,7 @@ pub fn write<S: Serialize>(ctx: &StageContext, format: &str, state: &S) -> Resul
         state_sha256: sha256_json(&value),
         state: &value,
     };
-    write_json_atomic(&path, &cp)
+    write_compact_json_atomic(&path, &cp)
 }
 
 /// Why a checkpoint is not resumed.

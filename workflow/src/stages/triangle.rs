@@ -2,9 +2,9 @@
 //! `object` stage's result.
 //!
 //! Artefacts in `output.path/triangle/`:
-//! - `result.json` — `{"format": "ipt-triangle/1", "state": TriangleState}`: the (subdivided) mesh, per-triangle
-//!   materials, per-object emission and the log of every round. Not written when `triangle.enabled = false`
-//!   (an old one is removed, so `export` falls back to the per-object result).
+//! - `mesh.ply` + `result.json` ([`crate::artefacts::triangle`]): the (subdivided) mesh with per-triangle
+//!   materials as face columns, and the per-object emission and the log of every round. Not written when
+//!   `triangle.enabled = false` (an old result is removed, so `export` falls back to the per-object result).
 //! - `checkpoint.json` while the stage runs — `{"format": "ipt-triangle-checkpoint/1", "config_sha256",
 //!   "inputs_sha256", "state"}` after every round that ended with a split; a rerun with the same hashes
 //!   resumes from it.
@@ -14,17 +14,16 @@ use std::path::PathBuf;
 use crate::artefacts::checkpoint;
 use crate::artefacts::ingest::Ingested;
 use crate::artefacts::object::{MATERIALS_FILE, read_result as read_object_result};
-use crate::artefacts::triangle::{CHECKPOINT_FORMAT, RESULT_FILE, ResultFile};
-use crate::atomic_file::write_json_atomic;
+use crate::artefacts::triangle::{CHECKPOINT_FORMAT, remove_result, write_result};
 use crate::config::TriangleConfig;
-use crate::stage_contract::{StageContext, StageError, remove_if_present};
-use optim::triangle::{RESULT_FORMAT, RoundInputs, TriangleError, TriangleSettings, TriangleState};
+use crate::stage_contract::{StageContext, StageError};
+use optim::triangle::{RoundInputs, TriangleError, TriangleSettings, TriangleState};
 
 /// Runs the stage.
 pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let plan = ctx.plan;
     if !plan.triangle.enabled {
-        remove_if_present(ctx.dir.join(RESULT_FILE))?;
+        remove_result(&ctx.dir)?;
         checkpoint::remove(&ctx.dir)?;
         ctx.note("disabled (triangle.enabled = false); export uses the per-object result");
         return Ok(Vec::new());
@@ -68,10 +67,10 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let progress = ctx.progress("rounds", u64::from(plan.triangle.rounds) + 1);
     let state = optim::triangle::run_rounds(&inputs, state, &mut on_round, progress.as_ref()).map_err(triangle_err)?;
     drop(progress);
-    write_json_atomic(&ctx.dir.join(RESULT_FILE), &ResultFile { format: RESULT_FORMAT.into(), state: state.clone() })?;
+    let written = write_result(&ctx.dir, &state)?;
     checkpoint::remove(&ctx.dir)?;
     ctx.note(&format!("{before} → {} triangles", state.triangles.len()));
-    Ok(vec![PathBuf::from("triangle").join(RESULT_FILE)])
+    Ok(written)
 }
 
 impl From<&TriangleConfig> for TriangleSettings {
