@@ -1,5 +1,6 @@
 //! Stage resume through the built binary on the bundled demo scan with a tiny, fast fit config:
 //! rerun → every stage skipped; an `object` key changed → object and export rerun, earlier stages skipped;
+//! a pixel budget below the photos' pixels → a larger downscale, noted in the log and the report;
 //! SIGKILL during `object` → the rerun resumes from the checkpoint and ends with exactly the result of an
 //! uninterrupted run with the same seed.
 
@@ -46,6 +47,8 @@ fn rerun_skips_every_stage_and_an_object_key_reruns_object_and_later() {
     for f in ["export/report.html", "export/trajectories.csv", "object/history.json"] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
+    let report = std::fs::read_to_string(out.join("export/report.html")).unwrap();
+    assert!(report.contains("photos prepared at 24×18 from 96×72 (downscale 4)"), "{report}");
 
     let (code, err) = pipeline(&["run", cfg]);
     assert_eq!(code, 0, "{err}");
@@ -67,6 +70,17 @@ fn rerun_skips_every_stage_and_an_object_key_reruns_object_and_later() {
     assert_eq!(decisions(&err, "running"), ["object", "triangle", "export"], "{err}");
     let again = workflow::materials::MaterialsFile::read(&out.join("materials.json")).unwrap();
     assert_eq!(again, materials);
+
+    // A pixel budget below the 4 views' 1728 pixels raises the downscale to the smallest factor that fits:
+    // 5 leaves 4 × 19 × 14 = 1064 pixels, 6 leaves 4 × 16 × 12 = 768.
+    let (code, err) = pipeline(&["run", cfg, "--set", "images.max_pixels=1000"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("[preprocess] downscale 6 instead of 4"), "{err}");
+    let report = std::fs::read_to_string(out.join("export/report.html")).unwrap();
+    assert!(
+        report.contains("photos prepared at 16×12 from 96×72 (downscale 6, raised from images.downscale = 4"),
+        "{report}"
+    );
 }
 
 #[test]

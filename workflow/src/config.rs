@@ -96,9 +96,15 @@ impl Default for OutputConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ImagesConfig {
-    /// Integer downscale factor applied to every photo (box filter); 1 = full resolution.
+    /// Integer downscale factor applied to every photo (box filter); 1 = full resolution. The preprocess stage
+    /// raises it where the prepared photos would exceed `max_pixels`.
     #[serde(default = "one")]
     pub downscale: u32,
+    /// Budget: the most pixels of all prepared photos together. Memory and the per-pixel work of the later
+    /// stages (the per-triangle stage's pixel collection, the export's detail shading) grow with them, so the
+    /// downscale factor grows until the chosen views fit (the smallest factor that fits is used).
+    #[serde(default = "default_max_pixels")]
+    pub max_pixels: u64,
     /// Keep only these views (colour file stems, e.g. `abc_i1_2`); empty = all views.
     #[serde(default)]
     pub cameras: Vec<String>,
@@ -163,7 +169,30 @@ fn default_calibration_points() -> u32 {
     20_000
 }
 
+/// 2²³ ≈ 8.4 M pixels: 180 photos of 1280×1024 are prepared at 213×170 (downscale 6). Measured on the
+/// corpus's house (docs/scale/README.md, "Photos larger than the budget"): at 3.7 M prepared pixels the whole
+/// run takes 25 minutes, at 26 M (the budget 2²⁵) the object stage alone peaked at 2.8 GB and each of the
+/// per-triangle stage's fit steps took 4 minutes, which puts the run well past the 45 minutes a house is
+/// allowed. The budget is the knob between the photos' detail and the run's cost.
+fn default_max_pixels() -> u64 {
+    1 << 23
+}
+
 impl ImagesConfig {
+    /// The downscale factor for views of `sizes` (width, height): `downscale`, raised to the smallest factor
+    /// at which the prepared pixels, Σ ⌊w/f⌋·⌊h/f⌋, fit `max_pixels`. Never more than the smallest view's
+    /// shorter side (a factor beyond it leaves no pixel).
+    #[must_use]
+    pub fn effective_downscale(&self, sizes: &[(u32, u32)]) -> u32 {
+        let pixels = |f: u32| sizes.iter().map(|&(w, h)| u64::from(w / f) * u64::from(h / f)).sum::<u64>();
+        let largest = sizes.iter().map(|&(w, h)| w.min(h)).min().unwrap_or(1).max(1);
+        let mut f = self.downscale.max(1);
+        while f < largest && pixels(f) > self.max_pixels {
+            f += 1;
+        }
+        f
+    }
+
     /// Whether any photometric quantity is estimated (the preprocess stage then samples the photos' overlap
     /// before preparing them).
     #[must_use]
@@ -183,6 +212,7 @@ impl Default for ImagesConfig {
     fn default() -> Self {
         Self {
             downscale: 1,
+            max_pixels: default_max_pixels(),
             cameras: Vec::new(),
             every: 1,
             response: ResponseChoice::default(),
@@ -455,6 +485,24 @@ fn one_line(e: &dyn std::fmt::Display) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_pixel_budget_raises_the_downscale_to_the_smallest_factor_that_fits() {
+        let house = vec![(1280, 1024); 180];
+        let images = ImagesConfig::default();
+        // 236 M pixels at full resolution, 9.4 M at 5 (256×204 each), 6.5 M at 6 (213×170).
+        assert_eq!(images.effective_downscale(&house), 6);
+        assert_eq!(images.effective_downscale(&[(96, 72); 8]), 1);
+        // A configured factor is a floor.
+        assert_eq!(ImagesConfig { downscale: 8, ..images.clone() }.effective_downscale(&house), 8);
+        assert_eq!(ImagesConfig { downscale: 2, ..images.clone() }.effective_downscale(&[(96, 72); 8]), 2);
+        // Exactly at the budget fits; one pixel less does not.
+        let exact = ImagesConfig { max_pixels: 8 * 48 * 36, ..images.clone() };
+        assert_eq!(exact.effective_downscale(&[(96, 72); 8]), 2);
+        assert_eq!(ImagesConfig { max_pixels: 8 * 48 * 36 - 1, ..exact }.effective_downscale(&[(96, 72); 8]), 3);
+        // A budget no factor meets stops at the smallest view's shorter side.
+        assert_eq!(ImagesConfig { max_pixels: 1, ..images }.effective_downscale(&[(96, 72), (40, 30)]), 30);
+    }
 
     fn p(text: &str, sets: &[&str]) -> Result<Config, ConfigError> {
         let sets: Vec<String> = sets.iter().map(|s| (*s).to_owned()).collect();

@@ -191,6 +191,7 @@ const TRACER_MAX_DEPTH: u32 = tracer::MAX_DEPTH_LIMIT;
 fn validate(c: &Config) -> Result<(), Invalid> {
     let i = &c.images;
     at_least_one("images.downscale", i.downscale)?;
+    rule(i.max_pixels >= 1, "images.max_pixels", ">= 1", i.max_pixels)?;
     at_least_one("images.every", i.every)?;
     at_least_one("images.calibration_points", i.calibration_points)?;
     for name in &i.cameras {

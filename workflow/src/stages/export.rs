@@ -362,6 +362,19 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         bar.inc(1);
     }
     drop(bar);
+    let calibration = crate::artefacts::preprocess::CalibrationFile::read(&plan.output)?;
+    let mut notes = vec![
+        format!("config: {}", plan.config_path.display()),
+        format!(
+            "{} triangles, {} objects, {} prepared views; re-renders at {} paths per pixel, max depth {}",
+            scene_data.triangles.len(),
+            scene_data.objects.len(),
+            prepared.names.len(),
+            plan.export.report_spp,
+            plan.tracer.max_depth
+        ),
+    ];
+    notes.extend(preparation_notes(plan, &scene_data, &prepared, calibration.is_some()));
     let data = ReportData {
         title: format!("Inverse path tracing: {}", plan.scan.path.display()),
         emission_profile: profile_name(materials.emission_profile).to_owned(),
@@ -370,24 +383,14 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         objects: materials.objects.clone(),
         why: history.why.clone(),
         triangle: None,
-        calibration: crate::artefacts::preprocess::CalibrationFile::read(&plan.output)?,
+        calibration,
         photometric: crate::artefacts::object::read_photometric(&plan.output)?,
         // history.json files written before the counts existed hold 0 paths: nothing to show then.
         samples: (history.traced_paths > 0).then_some(crate::report::SampleCounts {
             traced_paths: history.traced_paths,
             discarded: history.discarded_samples,
         }),
-        notes: vec![
-            format!("config: {}", plan.config_path.display()),
-            format!(
-                "{} triangles, {} objects, {} prepared views; re-renders at {} paths per pixel, max depth {}",
-                scene_data.triangles.len(),
-                scene_data.objects.len(),
-                prepared.names.len(),
-                plan.export.report_spp,
-                plan.tracer.max_depth
-            ),
-        ],
+        notes,
     };
     // The mesh export first: report.html shows its albedo atlas in the per-triangle section.
     let request = DetailRequest {
@@ -413,6 +416,40 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     files.extend(mesh.files);
     ctx.note(&format!("wrote {}", plan.output.join("materials.json").display()));
     Ok(files)
+}
+
+/// What the preprocess stage decided about the photos, read back from its artefacts: the size the photos were
+/// prepared at (and the downscale factor, which the pixel budget may have raised), and a photometric
+/// calibration the config asked for but the photos' overlap did not support (the stage then prepares every
+/// photo with one exposure; its reason is in the run log).
+fn preparation_notes(
+    plan: &crate::plan::Plan,
+    scene: &Ingested,
+    prepared: &crate::artefacts::preprocess::Prepared,
+    calibrated: bool,
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    let source = prepared.names.first().and_then(|n| scene.views.iter().find(|v| &v.name == n));
+    if let (Some(src), Some(cam)) = (source, prepared.cameras.first()) {
+        let factor = src.camera.width / cam.width.max(1);
+        let budget = if factor > plan.images.downscale {
+            format!(", raised from images.downscale = {} by images.max_pixels", plan.images.downscale)
+        } else {
+            String::new()
+        };
+        notes.push(format!(
+            "photos prepared at {}×{} from {}×{} (downscale {factor}{budget})",
+            cam.width, cam.height, src.camera.width, src.camera.height
+        ));
+    }
+    if plan.images.calibrates() && !calibrated {
+        notes.push(
+            "photometric calibration asked for but not applied: the photos' overlap did not support it \
+             (reason in run.log); every photo has one exposure and white balance"
+                .to_owned(),
+        );
+    }
+    notes
 }
 
 #[cfg(test)]

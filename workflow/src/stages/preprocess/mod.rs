@@ -1,5 +1,7 @@
 //! The `preprocess` stage: turns each selected view's photo into linear radiance with a validity mask
-//! (undistorted, optionally downscaled; `ingest::photo::prepare_view`) and caches it.
+//! (undistorted, optionally downscaled; `ingest::photo::prepare_view`) and caches it. The downscale factor is
+//! `images.downscale`, raised until all prepared photos together fit the pixel budget `images.max_pixels`
+//! ([`crate::config::ImagesConfig::effective_downscale`]); the stage notes when it raises it.
 //!
 //! When `[images]` asks for any photometric estimate (per-photo exposure or white balance, vignetting, an
 //! estimated response), the photos' overlap calibrates them first ([`calibration`]) and each photo is then
@@ -51,7 +53,18 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     if chosen.is_empty() {
         return Err(StageError::Artefact { path: ctx.plan.config_path.clone(), message: "no view selected".into() });
     }
-    let base = PhotoOptions { downscale: ctx.plan.images.downscale, ..PhotoOptions::default() };
+    let sizes: Vec<(u32, u32)> = chosen.iter().map(|v| (v.camera.width, v.camera.height)).collect();
+    let downscale = ctx.plan.images.effective_downscale(&sizes);
+    if downscale != ctx.plan.images.downscale {
+        let full: u64 = sizes.iter().map(|&(w, h)| u64::from(w) * u64::from(h)).sum();
+        ctx.note(&format!(
+            "downscale {downscale} instead of {}: the {} views' {full} pixels exceed images.max_pixels = {}",
+            ctx.plan.images.downscale,
+            sizes.len(),
+            ctx.plan.images.max_pixels
+        ));
+    }
+    let base = PhotoOptions { downscale, ..PhotoOptions::default() };
     let mut outputs_extra = Vec::new();
     let calibrated = if ctx.plan.images.calibrates() { calibrate(ctx, &scene, &chosen, &base)? } else { None };
     let (chosen, per_view): (Vec<&View>, Vec<PhotoOptions>) = if let Some((kept, file)) = calibrated {
@@ -88,7 +101,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     drop(bar);
     let list = ViewList { format: VIEWS_FORMAT.into(), views: chosen.iter().map(|v| v.name.clone()).collect() };
     write_json_atomic(&ctx.dir.join(VIEWS_FILE), &list)?;
-    ctx.note(&format!("{} views prepared (downscale {})", chosen.len(), ctx.plan.images.downscale));
+    ctx.note(&format!("{} views prepared (downscale {downscale})", chosen.len()));
     let masked: usize = written.iter().map(|(_, m)| m).sum();
     if masked > 0 {
         ctx.note(&format!("{masked} photo pixels with a NaN, infinite or negative value masked"));
