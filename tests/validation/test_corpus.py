@@ -138,6 +138,30 @@ def test_tiny_scan_layout_and_truth(tiny):
         assert np.all((alb >= 0) & (alb <= 1))
 
 
+def test_upsampled_scan_keeps_every_ray_and_the_photos_mean(tiny, tmp_path):
+    from corpus.cameras import read_conf
+    from corpus.upsample import upsample
+
+    out = tmp_path / "tiny-x3"
+    assert upsample(tiny, out, 3) == len(list((tiny / "undistorted_color_images").glob("*.exr")))
+    for entry in tiny.iterdir():
+        if entry.name not in ("undistorted_color_images", "undistorted_camera_parameters"):
+            assert (out / entry.name).is_symlink() and (out / entry.name).resolve() == entry.resolve()
+    conf = "undistorted_camera_parameters/tiny.conf"
+    small, big = read_conf(tiny / conf), read_conf(out / conf)
+    for a, b in zip(small, big, strict=True):
+        np.testing.assert_array_equal(a.cam_to_world, b.cam_to_world)
+        # The centre of source pixel u is the centre of the 3×3 block 3u … 3u + 2: u' = 3u + 1.
+        x = np.array([0.3, -0.2, 2.0])
+        for f, c, f2, c2, k in ((a.fx, a.cx, b.fx, b.cx, 0), (a.fy, a.cy, b.fy, b.cy, 1)):
+            assert f2 * x[k] / x[2] + c2 == pytest.approx(3 * (f * x[k] / x[2] + c) + 1, abs=1e-9)
+        p_small = layout.read_exr(tiny / "undistorted_color_images" / f"{a.name}.exr")
+        p_big = layout.read_exr(out / "undistorted_color_images" / f"{a.name}.exr")
+        assert p_big.shape == (3 * p_small.shape[0], 3 * p_small.shape[1], 3)
+        assert p_big.min() >= 0.0
+        assert p_big.mean() == pytest.approx(p_small.mean(), rel=0.02)
+
+
 def test_tiny_emitters_face_their_emitting_side(tiny):
     check_emitter_winding(tiny, "tiny")
 

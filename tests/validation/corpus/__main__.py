@@ -1,5 +1,5 @@
 """`python -m corpus` (run by `scripts/corpus`): build, score, generate and list the corpus scenes; re-render a
-`lab synth` scan with Mitsuba."""
+`lab synth` scan with Mitsuba; upsample a scan's photos (its timing variant at a scanner's resolution)."""
 from __future__ import annotations
 
 import argparse
@@ -36,6 +36,10 @@ def main(argv=None) -> int:
     r.add_argument("scan_dir", type=Path)
     r.add_argument("--spp", type=int, default=1024)
     r.add_argument("--threads", type=int, default=1)
+    u = sub.add_parser("upsample", help="a scan with every photo upsampled (the timing variant of a scan)")
+    u.add_argument("scan_dir", type=Path)
+    u.add_argument("out_dir", type=Path)
+    u.add_argument("--factor", type=int, default=8, help="integer upsampling factor (default 8: 160×128 → 1280×1024)")
     sub.add_parser("list", help="the scene names")
     a = ap.parse_args(argv)
 
@@ -72,6 +76,13 @@ def main(argv=None) -> int:
         t = time.time()
         n = len(rerender(a.scan_dir, a.spp, a.threads))
         print(f"{n} photos of {a.scan_dir} rendered by Mitsuba at {a.spp} spp in {time.time() - t:.1f} s")
+        return 0
+    if a.cmd == "upsample":
+        from .upsample import upsample
+
+        t = time.time()
+        n = upsample(a.scan_dir, a.out_dir, a.factor)
+        print(f"{n} photos of {a.scan_dir} upsampled {a.factor}x into {a.out_dir} in {time.time() - t:.1f} s")
         return 0
     if a.cmd == "score":
         from . import score
