@@ -71,14 +71,16 @@ struct Point {
 }
 
 /// The values of each axis (the first of each is the default scene's own size, except for objects and
-/// triangles, whose first value adds nothing).
+/// triangles, whose first value adds nothing). The last of each reaches the house-sized scan of the corpus
+/// (`scripts/corpus build house`) on that axis alone: 525 k triangles (subdivision +115), 213 objects (+204
+/// boxes), 180 photos, 1280 pixels wide (a Matterport photo's width).
 fn axis_values(axis: &str, quick: bool) -> Vec<u32> {
     match (axis, quick) {
         (_, true) => vec![4, 8],
-        ("triangles", _) => vec![0, 4, 12, 36],
-        ("objects", _) => vec![0, 8, 24, 48],
-        ("photos", _) => vec![8, 16, 32, 64],
-        ("resolution", _) => vec![48, 96, 192, 384],
+        ("triangles", _) => vec![0, 12, 36, 115],
+        ("objects", _) => vec![0, 24, 72, 204],
+        ("photos", _) => vec![8, 32, 90, 180],
+        ("resolution", _) => vec![48, 192, 640, 1280],
         _ => Vec::new(),
     }
 }
@@ -103,8 +105,10 @@ fn point(base: &SceneDesc, axis: &'static str, value: u32, quick: bool) -> Point
         "triangles" => d.objects.iter_mut().for_each(|o| o.subdivisions += value),
         "objects" => {
             let id0 = d.objects.iter().map(|o| o.id).max().unwrap_or(0) + 1;
-            // A grid of 20 cm boxes on the floor's inner part, seeded colours.
+            // A grid of boxes on the floor's inner part (2.8 m × 2.0 m), seeded colours: 20 cm boxes, smaller
+            // where the grid's cells are (each box at most 80 % of its cell, so boxes never touch).
             let cols = (value as f32).sqrt().ceil().max(1.0) as u32;
+            let half = 0.1_f32.min(0.4 * 2.0 / cols as f32);
             for i in 0..value {
                 let (cx, cy) = (i % cols, i / cols);
                 let x = 0.6 + 2.8 * (cx as f32 + 0.5) / cols as f32;
@@ -114,7 +118,7 @@ fn point(base: &SceneDesc, axis: &'static str, value: u32, quick: bool) -> Point
                     id: id0 + i as i32,
                     label: format!("box {i}"),
                     category_id: 39,
-                    shape: Shape::Box { min: [x - 0.1, y - 0.1, 0.0], max: [x + 0.1, y + 0.1, 0.2] },
+                    shape: Shape::Box { min: [x - half, y - half, 0.0], max: [x + half, y + half, 2.0 * half] },
                     subdivisions: 0,
                     base_color: [c(1), c(2), c(3)],
                     roughness: 0.5,
