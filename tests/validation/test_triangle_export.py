@@ -35,7 +35,7 @@ def exported():
         pytest.skip("run `cargo test -p pipeline --test triangle_checker` first (writes target/triangle_checker)")
     result = json.loads((KEPT / "triangle" / "result.json").read_text())
     assert result["format"] == "ipt-triangle/2"
-    ply = PlyData.read(str(KEPT / "triangle" / result["mesh"]))
+    ply = PlyData.read(str(KEPT / "triangle" / "mesh.ply"))
     v, f = ply["vertex"], ply["face"]
     assert (v.count, f.count) == (result["vertices"], result["triangles"])
     objects = json.loads((KEPT / "scene.json").read_text())["objects"]

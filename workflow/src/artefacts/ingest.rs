@@ -63,18 +63,7 @@ impl Ingested {
         }
         let mesh_path = dir.join(MESH_FILE);
         let ply = ingest::ply::read_ply(&mesh_path)?.mesh;
-        let bad = |message: String| StageError::Artefact { path: mesh_path.clone(), message };
-        let face_object = ply.face_ids("object").ok_or_else(|| bad("no per-face `object` column".into()))?;
-        let face_object: Vec<u32> = face_object
-            .iter()
-            .enumerate()
-            .map(|(t, &o)| {
-                u32::try_from(o)
-                    .ok()
-                    .filter(|&o| (o as usize) < index.objects.len())
-                    .ok_or_else(|| bad(format!("face {t}: object {o} is not in {SCENE_FILE}")))
-            })
-            .collect::<Result<_, _>>()?;
+        let face_object = super::face_objects(&ply, index.objects.len(), &mesh_path, SCENE_FILE)?;
         Ok(Self {
             positions: ply.positions,
             normals: ply.normals,

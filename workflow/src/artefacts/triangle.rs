@@ -7,9 +7,8 @@
 //!   (index into the ingested object list) and `float base_color_r base_color_g base_color_b roughness
 //!   metallic specular`. Binary floats round-trip exactly; the house-sized scan's result takes 28 MB here,
 //!   against 168 MB as pretty JSON (docs/scale/README.md, "The run's disk cache").
-//! - `result.json` — `{"format": "ipt-triangle/2", "mesh": "mesh.ply", "vertices", "triangles", "emission",
-//!   "rounds_done", "log"}` ([`ResultFile`]): what is not per triangle, and the mesh's counts, checked on
-//!   reading. Written after the mesh, so a `result.json` only exists beside a complete `mesh.ply`.
+//! - `result.json` — `{"format": "ipt-triangle/2", "vertices", "triangles", "emission", "rounds_done",
+//!   "log"}` ([`ResultFile`]): what is not per triangle, and the mesh's counts, checked on reading. Written after the mesh, so a `result.json` only exists beside a complete `mesh.ply`.
 //! - `checkpoint.json` while the stage runs (format `ipt-triangle-checkpoint/1`, [`super::checkpoint`]).
 
 use std::path::{Path, PathBuf};
@@ -39,9 +38,7 @@ pub const FACE_COLUMNS: [&str; 7] =
 #[serde(deny_unknown_fields)]
 pub struct ResultFile {
     pub format: String,
-    /// File name of the mesh, relative to this file's directory.
-    pub mesh: String,
-    /// Vertex and triangle counts of the mesh.
+    /// Vertex and triangle counts of the mesh ([`MESH_FILE`], beside this file).
     pub vertices: usize,
     pub triangles: usize,
     /// Per object.
@@ -81,7 +78,6 @@ pub fn write_result(dir: &Path, state: &TriangleState) -> Result<Vec<PathBuf>, S
     ingest::ply::write_ply(&mesh_path, &ply)?;
     let file = ResultFile {
         format: RESULT_FORMAT.into(),
-        mesh: MESH_FILE.into(),
         vertices: state.positions.len(),
         triangles: state.triangles.len(),
         emission: state.emission.clone(),
@@ -120,14 +116,8 @@ pub fn read_result(run_dir: &Path) -> Result<Option<TriangleState>, StageError> 
     }
     let r: ResultFile =
         serde_json::from_str(&text).map_err(|e| StageError::Artefact { path: path.clone(), message: e.to_string() })?;
-    let mesh_path = dir.join(&r.mesh);
+    let mesh_path = dir.join(MESH_FILE);
     let bad = |message: String| StageError::Artefact { path: mesh_path.clone(), message };
-    if Path::new(&r.mesh).file_name().is_none_or(|n| n != r.mesh.as_str()) {
-        return Err(StageError::Artefact {
-            path,
-            message: format!("mesh {:?} must be a plain file name beside result.json", r.mesh),
-        });
-    }
     let read = ingest::ply::read_ply(&mesh_path)?;
     let mut ply = read.mesh;
     if ply.positions.len() != r.vertices || ply.triangles.len() != r.triangles || read.polygons_triangulated != 0 {
@@ -151,17 +141,7 @@ pub fn read_result(run_dir: &Path) -> Result<Option<TriangleState>, StageError> 
         f32_col(FACE_COLUMNS[5])?,
         f32_col(FACE_COLUMNS[6])?,
     ];
-    let object = match ply.face_prop(FACE_COLUMNS[0]) {
-        Some(FaceValues::I32(v)) => v,
-        _ => return Err(bad(format!("no int face column {:?}", FACE_COLUMNS[0]))),
-    };
-    let face_object = object
-        .iter()
-        .map(|&o| u32::try_from(o).ok().filter(|&o| (o as usize) < r.emission.len()))
-        .collect::<Option<Vec<u32>>>()
-        .ok_or_else(|| {
-            bad(format!("an object index is outside 0..{} (the objects of result.json)", r.emission.len()))
-        })?;
+    let face_object = super::face_objects(&ply, r.emission.len(), &mesh_path, RESULT_FILE)?;
     let materials = (0..r.triangles)
         .map(|t| tracer::Material {
             base_color: Vec3::new(r_[t], g[t], b[t]),
