@@ -2,8 +2,8 @@
 
 `cargo test -p pipeline --test triangle_checker` runs the whole pipeline on the checker scene
 (data-fixtures/checker: checkerboard floor, subdivided by the triangle stage) and copies the run's `export/`,
-`triangle/` (result.json and mesh.ply) and `ingest/scene.json` to `target/triangle_checker/`. This module re-runs the checks of
-test_export.py (plyfile reads mesh.ply back identically: face count, vertices, albedo, roughness, metallic,
+`triangle/` (result.json and mesh.ply) and `ingest/scene.json` to `target/triangle_checker/`. This module re-runs
+the checks of test_export.py (plyfile reads mesh.ply back identically: face count, vertices, albedo, roughness, metallic,
 emission, segment ids; open3d reads textured.obj with its texture and the texture at each triangle's centroid UV
 gives its albedo within 1/255; the glTF validator and trimesh accept scene.glb) on that output, with the
 expected values taken from the triangle stage's result instead of the export fixture's JSON. Skipped when the

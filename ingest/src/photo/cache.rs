@@ -1,7 +1,7 @@
 //! On-disk cache of prepared views in a run directory: `<name>.exr` holds channels R, G, B (linear radiance;
 //! half float when that keeps every value within 2⁻¹¹ of the image's maximum, else 32-bit float, see
-//! [`super::exr::half_keeps`]) and `mask` (half float, exactly 0 or 1), ZIP-compressed; `<name>.json` is the manifest entry (camera of
-//! the prepared image, size, valid-pixel count). Both are written atomically with [`crate::write_atomic`]
+//! [`super::exr::half_keeps`]) and `mask` (half float, exactly 0 or 1), ZIP-compressed; `<name>.json` is the
+//! manifest entry (camera of the prepared image, size, valid-pixel count). Both are written atomically with [`crate::write_atomic`]
 //! (temporary file in the same directory, fsync, rename), EXR first, so a manifest entry only exists for a
 //! complete image.
 
