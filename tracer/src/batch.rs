@@ -154,14 +154,71 @@ impl<'a> Renderer<'a> {
                 ((sum / f64::from(spp)).as_vec3(), rays, discarded)
             })
             .collect();
-        let stats = TraceStats {
-            paths: pixels.len() as u64 * u64::from(spp),
-            rays: per_pixel.iter().map(|p| p.1[0] + p.1[1]).sum(),
-            shadow_rays: per_pixel.iter().map(|p| p.1[1]).sum(),
-            discarded: per_pixel.iter().map(|p| p.2).sum(),
-        };
-        add_to_totals(&stats);
+        let stats = value_stats(pixels.len(), spp, per_pixel.iter().map(|p| (p.1, p.2)));
         Ok((per_pixel.into_iter().map(|p| p.0).collect(), stats))
+    }
+
+    /// The basis images of the emitter slots `slots` over `pixels`: entry i is, bit for bit, what
+    /// [`Renderer::render_pixels`] returns with this renderer's materials and an emission of 1 at `slots[i]`
+    /// and 0 elsewhere (the column ∂I/∂e of that emitter; this renderer's own emission is not used), and the
+    /// work done. Each path is traced once for all the columns ([`integrator::trace_columns`]): its
+    /// continuation rays are shared, its next-event connections are one per column. A path whose estimate in
+    /// a column is not finite is discarded from that column (module doc) and counted once.
+    pub fn render_emission_columns(
+        &self,
+        cameras: &[Camera],
+        pixels: &[PixelRef],
+        slots: &[u32],
+        spp: u32,
+        seed: u64,
+        iteration: u64,
+    ) -> Result<(Vec<Vec<Vec3>>, TraceStats), TracerError> {
+        check_pixels(cameras, pixels, spp)?;
+        let n_slots = self.scene.emitter_slots();
+        if let Some(&slot) = slots.iter().find(|&&s| s as usize >= n_slots) {
+            return Err(TracerError::BadSetting {
+                what: "emission column",
+                requirement: "an emitter slot of the scene",
+                value: format!("slot {slot} of {n_slots}"),
+            });
+        }
+        let samplers = slots
+            .iter()
+            .map(|&k| {
+                let mut emission = vec![Vec3::ZERO; n_slots];
+                emission[k as usize] = Vec3::ONE;
+                LightSampler::new(self.scene, &Params { materials: Vec::new(), emission })
+            })
+            .collect();
+        let cols = integrator::Columns { samplers, slots: slots.to_vec() };
+        let ctx = self.context();
+        let n = slots.len();
+        let per_pixel: Vec<(Vec<Vec3>, [u64; 2], u64)> = pixels
+            .par_iter()
+            .map_init(Vec::new, |out, &p| {
+                let mut sums = vec![DVec3::ZERO; n];
+                let mut rays = [0; 2];
+                let mut discarded = 0;
+                for s in 0..spp {
+                    let rng = PathSampler::new(seed, Stream::Value, iteration, key(p), s);
+                    let (o, d) = primary(cameras, p, &rng);
+                    integrator::trace_columns(&ctx, &cols, o, d, &rng, out, &mut rays);
+                    let mut dropped = false;
+                    for (sum, l) in sums.iter_mut().zip(out.iter()) {
+                        if l.is_finite() {
+                            *sum += l.as_dvec3();
+                        } else {
+                            dropped = true;
+                        }
+                    }
+                    discarded += u64::from(dropped);
+                }
+                (sums.iter().map(|s| (*s / f64::from(spp)).as_vec3()).collect(), rays, discarded)
+            })
+            .collect();
+        let stats = value_stats(pixels.len(), spp, per_pixel.iter().map(|p| (p.1, p.2)));
+        let columns = (0..n).map(|i| per_pixel.iter().map(|p| p.0[i]).collect()).collect();
+        Ok((columns, stats))
     }
 
     /// `∂(Σ_j weights[j] · I_j)/∂θ` estimated with `spp_grad` paths per pixel from the gradient stream of
@@ -178,56 +235,94 @@ impl<'a> Renderer<'a> {
         seed: u64,
         iteration: u64,
     ) -> Result<(Grads, TraceStats), TracerError> {
+        let (mut grads, stats) =
+            self.gradient_pixels_weighted(cameras, pixels, &[weights], spp_grad, seed, iteration)?;
+        Ok((grads.swap_remove(0), stats))
+    }
+
+    /// [`Renderer::gradient_pixels`] for several weightings of the same pixels at once: entry i of the result
+    /// is `∂(Σ_j weight_sets[i][j] · I_j)/∂θ`, bit for bit what `gradient_pixels` returns for
+    /// `weight_sets[i]`. A path does not depend on the weights (they enter only its backward pass), so each
+    /// pixel's paths are traced once and every weighting's backward pass runs on the same recorded path: a
+    /// Jacobian per colour channel (three unit weightings) costs one trace instead of three. A pixel is traced
+    /// when any weighting gives it a non-zero weight; a path is discarded for the weightings under which its
+    /// entries are not finite, and counted once in the returned statistics if any weighting discarded it.
+    pub fn gradient_pixels_weighted(
+        &self,
+        cameras: &[Camera],
+        pixels: &[PixelRef],
+        weight_sets: &[&[Vec3]],
+        spp_grad: u32,
+        seed: u64,
+        iteration: u64,
+    ) -> Result<(Vec<Grads>, TraceStats), TracerError> {
         check_pixels(cameras, pixels, spp_grad)?;
-        if weights.len() != pixels.len() {
-            return Err(TracerError::LengthMismatch { what: "weights", expected: pixels.len(), got: weights.len() });
-        }
-        // A non-finite weight would make every path of its pixel non-finite: the caller's bug, reported as such
-        // rather than discarded (module doc).
-        if let Some((index, w)) = weights.iter().enumerate().find(|(_, w)| !w.is_finite()) {
-            return Err(TracerError::BadSetting {
-                what: "gradient weight",
-                requirement: "finite",
-                value: format!("{w} at pixel {index}"),
-            });
+        for weights in weight_sets {
+            if weights.len() != pixels.len() {
+                return Err(TracerError::LengthMismatch {
+                    what: "weights",
+                    expected: pixels.len(),
+                    got: weights.len(),
+                });
+            }
+            // A non-finite weight would make every path of its pixel non-finite: the caller's bug, reported as
+            // such rather than discarded (module doc).
+            if let Some((index, w)) = weights.iter().enumerate().find(|(_, w)| !w.is_finite()) {
+                return Err(TracerError::BadSetting {
+                    what: "gradient weight",
+                    requirement: "finite",
+                    value: format!("{w} at pixel {index}"),
+                });
+            }
         }
         let ctx = self.context();
-        let per_pixel: Vec<(Vec<GradEntry>, [u64; 2], u64, u64)> = pixels
+        let n_sets = weight_sets.len();
+        let per_pixel: Vec<PixelGrads> = pixels
             .par_iter()
-            .zip(weights.par_iter())
+            .enumerate()
             .map_init(
                 || (Vec::new(), Vec::new()),
-                |(record, path_entries), (&p, &w)| {
-                    let mut entries = Vec::new();
+                |(record, path_entries), (j, &p)| {
+                    let mut entries = vec![Vec::new(); n_sets];
                     let mut rays = [0; 2];
                     let mut discarded = 0;
-                    // A zero weight means the pixel does not enter the objective: its gradient is exactly zero.
-                    if w == Vec3::ZERO {
+                    // A zero weight means the pixel does not enter that objective: its gradient is exactly zero.
+                    let ws: Vec<Option<Vec3>> = weight_sets
+                        .iter()
+                        .map(|w| Some(w[j]).filter(|&w| w != Vec3::ZERO).map(|w| w / spp_grad as f32))
+                        .collect();
+                    if ws.iter().all(Option::is_none) {
                         return (entries, rays, 0, 0);
                     }
-                    let w = w / spp_grad as f32;
                     for s in 0..spp_grad {
                         let rng = PathSampler::new(seed, Stream::Gradient, iteration, key(p), s);
                         let (o, d) = primary(cameras, p, &rng);
                         let l = integrator::trace(&ctx, o, d, &rng, Mode::Gradient, record, &mut rays);
-                        // The path's contributions go to a scratch list first, so that a non-finite one can be
-                        // dropped whole (module doc) without touching the pixel's sums.
-                        path_entries.clear();
-                        integrator::backward(record, w, path_entries);
-                        if l.is_finite() && entries_are_finite(path_entries) {
-                            integrator::merge(&mut entries, path_entries);
-                        } else {
-                            discarded += 1;
+                        let mut dropped = false;
+                        for (w, out) in ws.iter().zip(&mut entries) {
+                            let Some(w) = *w else { continue };
+                            // The path's contributions go to a scratch list first, so that a non-finite one can
+                            // be dropped whole (module doc) without touching the pixel's sums.
+                            path_entries.clear();
+                            integrator::backward(record, w, path_entries);
+                            if l.is_finite() && entries_are_finite(path_entries) {
+                                integrator::merge(out, path_entries);
+                            } else {
+                                dropped = true;
+                            }
                         }
+                        discarded += u64::from(dropped);
                     }
                     (entries, rays, u64::from(spp_grad), discarded)
                 },
             )
             .collect();
-        let mut grads = Grads::zeros_like(self.params);
+        let mut grads = vec![Grads::zeros_like(self.params); n_sets];
         let mut stats = TraceStats::default();
         for (e, rays, paths, discarded) in &per_pixel {
-            integrator::accumulate(&mut grads, e);
+            for (g, e) in grads.iter_mut().zip(e) {
+                integrator::accumulate(g, e);
+            }
             stats.rays += rays[0] + rays[1];
             stats.shadow_rays += rays[1];
             stats.paths += paths;
@@ -236,6 +331,23 @@ impl<'a> Renderer<'a> {
         add_to_totals(&stats);
         Ok((grads, stats))
     }
+}
+
+/// One pixel's gradient entries per weighting, its [closest-hit, shadow] ray counts, paths and discarded
+/// paths.
+type PixelGrads = (Vec<Vec<GradEntry>>, [u64; 2], u64, u64);
+
+/// The work of a value-mode call over `n_pixels` pixels at `spp` paths each, from every pixel's [closest-hit,
+/// shadow] ray counts and discarded paths, added to the process totals.
+fn value_stats(n_pixels: usize, spp: u32, per_pixel: impl Iterator<Item = ([u64; 2], u64)> + Clone) -> TraceStats {
+    let stats = TraceStats {
+        paths: n_pixels as u64 * u64::from(spp),
+        rays: per_pixel.clone().map(|p| p.0[0] + p.0[1]).sum(),
+        shadow_rays: per_pixel.clone().map(|p| p.0[1]).sum(),
+        discarded: per_pixel.map(|p| p.1).sum(),
+    };
+    add_to_totals(&stats);
+    stats
 }
 
 /// Whether every component of one path's gradient entries is finite, by one check of their sum: a sum of

@@ -19,9 +19,9 @@
 //! β_k ⊙ f_nee,k·g_k·∂Le/∂e at every NEE connection.
 
 use crate::bsdf::{BsdfSample, Material, MaterialAt, MaterialGrad};
-use crate::lights::LightSampler;
+use crate::lights::{LightSample, LightSampler};
 use crate::numerics::{Frame, offset_ray_origin, power_heuristic};
-use crate::params::{Grads, MaterialGradSum, Params, TracerSettings};
+use crate::params::{EmissionProfile, Grads, MaterialGradSum, Params, TracerSettings};
 use crate::rng::PathSampler;
 use crate::scene::Scene;
 use glam::{DVec3, Vec2, Vec3};
@@ -165,6 +165,64 @@ fn finish_shadow<const GRAD: bool>(
     v.nee = Some(NeeRecord { d_f, f, le: s.le, g, emitter: s.emitter, le_factor: s.le_factor });
 }
 
+/// MIS weight of emission reached by a BSDF-sampled ray (`prev_bsdf_pdf`; None for the camera ray: weight 1)
+/// at distance `t` and cosine `cos_o` on a triangle of emitter slot `emitter`, against `lights`' density of
+/// sampling that point.
+#[inline]
+fn hit_mis(lights: &LightSampler, emitter: u32, prev_bsdf_pdf: Option<f32>, t: f32, cos_o: f32) -> f32 {
+    match prev_bsdf_pdf {
+        None => 1.0,
+        Some(pdf_b) => {
+            let pdf_area = lights.pdf_area_of_slot(emitter);
+            if pdf_area > 0.0 {
+                let pdf_l = pdf_area * t * t / cos_o;
+                power_heuristic(pdf_b, pdf_l)
+            } else {
+                1.0
+            }
+        }
+    }
+}
+
+/// The next-event connection from the shading point `p` (geometric normal `ng` on the viewer's side, shading
+/// `frame`, BSDF `bsdf`) to the light sample `ls`, up to its shadow ray; None where it cannot contribute: the
+/// light faces away, the point lies behind the surface, or (value mode) the BSDF is 0 there, so that its
+/// shadow ray is not traced. Gradient mode still needs ∂f, evaluated after the shadow ray (`finish_shadow`).
+/// `emission(slot)` is the emitted radiance scale of the light's slot.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn connect<const GRAD: bool>(
+    scene: &Scene,
+    profile: EmissionProfile,
+    bsdf: &MaterialAt<'_>,
+    frame: &Frame,
+    p: Vec3,
+    ng: Vec3,
+    ls: LightSample,
+    emission: impl Fn(u32) -> Vec3,
+) -> Option<PendingShadow> {
+    let to_light = ls.p - p;
+    let dist2 = to_light.length_squared();
+    let wi = to_light / dist2.sqrt();
+    let ng_l = scene.geometric_normal(ls.tri);
+    let cos_l = -wi.dot(ng_l);
+    let le_factor = profile.factor(cos_l);
+    if !(le_factor > 0.0 && wi.dot(ng) > 0.0 && dist2 > 0.0) {
+        return None;
+    }
+    let wi_l = frame.to_local(wi);
+    let eval = (!GRAD).then(|| bsdf.eval_pdf(wi_l));
+    if eval.is_some_and(|(f, _)| f == Vec3::ZERO) {
+        return None;
+    }
+    let from = offset_ray_origin(p, ng, wi);
+    let to = offset_ray_origin(ls.p, ng_l, -wi);
+    let pdf_l = ls.pdf_area * dist2 / cos_l;
+    let light_emitter = scene.emitter_of(ls.tri);
+    let le = emission(light_emitter) * le_factor;
+    Some(PendingShadow { from, dir: to - from, wi_l, pdf_l, le, le_factor, emitter: light_emitter, eval })
+}
+
 /// The path loop of [`trace`]; `GRAD` = gradient mode.
 ///
 /// Order of the Embree queries: a vertex's shadow ray is traced after the closest-hit query of the next ray
@@ -208,18 +266,7 @@ fn trace_mode<const GRAD: bool>(
         let cos_o = sp.ng.dot(wo);
         let factor = profile.factor(cos_o);
         if factor > 0.0 {
-            let mis = match prev_bsdf_pdf {
-                None => 1.0,
-                Some(pdf_b) => {
-                    let pdf_area = lights.pdf_area_of_slot(emitter);
-                    if pdf_area > 0.0 {
-                        let pdf_l = pdf_area * t * t / cos_o;
-                        power_heuristic(pdf_b, pdf_l)
-                    } else {
-                        1.0
-                    }
-                }
-            };
+            let mis = hit_mis(lights, emitter, prev_bsdf_pdf, t, cos_o);
             v.le_factor = factor * mis;
             v.le = params.emission[emitter as usize] * v.le_factor;
             l += beta * v.le;
@@ -239,38 +286,9 @@ fn trace_mode<const GRAD: bool>(
         let bsdf = material.at(wo_l);
 
         // Next-event estimation, up to its shadow ray (traced below).
-        let mut shadow = None;
-        if let Some(ls) = light {
-            let to_light = ls.p - sp.p;
-            let dist2 = to_light.length_squared();
-            let wi = to_light / dist2.sqrt();
-            let ng_l = scene.geometric_normal(ls.tri);
-            let cos_l = -wi.dot(ng_l);
-            let le_factor = profile.factor(cos_l);
-            if le_factor > 0.0 && wi.dot(ng) > 0.0 && dist2 > 0.0 {
-                let wi_l = frame.to_local(wi);
-                // Value mode: a zero BSDF value contributes nothing, so its shadow ray is not traced. Gradient
-                // mode still needs ∂f, evaluated after the shadow ray (finish_shadow).
-                let eval = (!GRAD).then(|| bsdf.eval_pdf(wi_l));
-                if eval.is_none_or(|(f, _)| f != Vec3::ZERO) {
-                    let from = offset_ray_origin(sp.p, ng, wi);
-                    let to = offset_ray_origin(ls.p, ng_l, -wi);
-                    let pdf_l = ls.pdf_area * dist2 / cos_l;
-                    let light_emitter = scene.emitter_of(ls.tri);
-                    let le = params.emission[light_emitter as usize] * le_factor;
-                    shadow = Some(PendingShadow {
-                        from,
-                        dir: to - from,
-                        wi_l,
-                        pdf_l,
-                        le,
-                        le_factor,
-                        emitter: light_emitter,
-                        eval,
-                    });
-                }
-            }
-        }
+        let shadow = light.and_then(|ls| {
+            connect::<GRAD>(scene, profile, &bsdf, &frame, sp.p, ng, ls, |e| params.emission[e as usize])
+        });
 
         // BSDF sampling of the continuation. Gradient mode evaluates f once, with its derivatives.
         let u_dir = Vec2::new(rng.get(dim + 5), rng.get(dim + 6));
@@ -317,6 +335,124 @@ fn trace_mode<const GRAD: bool>(
         d = wi;
     }
     l
+}
+
+/// The emitters of [`trace_columns`]: one light sampler per column, each built for its slot alone at unit
+/// emission, and the column of each emitter slot.
+#[derive(Debug, Clone)]
+pub(crate) struct Columns {
+    /// `samplers[i]` samples column i's slot only (empty if the slot has no area).
+    pub samplers: Vec<LightSampler>,
+    /// The emitter slot of each column.
+    pub slots: Vec<u32>,
+}
+
+/// One path's estimate for every column of `cols` at once: entry i of `out` (cleared and resized) is exactly
+/// what [`trace`] in value mode returns with `Params::emission` = 1 at `cols.slots[i]` and 0 elsewhere (the
+/// basis image of that emitter), bit for bit. The columns share everything that does not depend on which
+/// object emits — the camera ray, every BSDF-sampled continuation and its Russian roulette (the throughput
+/// does not depend on emission) — and differ only in their next-event connections, each drawn with the same
+/// random numbers as that column's own path would draw them, and in their MIS weights. A basis render of K
+/// emitters then traces each continuation ray once instead of K times; the shadow rays stay one per column
+/// and vertex. The loop follows `trace_mode::<false>` step for step (each column's sums are formed in the
+/// same order); the test `columns_match_separate_basis_renders` holds them to the same bits.
+pub(crate) fn trace_columns(
+    ctx: &Context<'_>,
+    cols: &Columns,
+    org: Vec3,
+    dir: Vec3,
+    rng: &PathSampler,
+    out: &mut Vec<Vec3>,
+    rays: &mut [u64; 2],
+) {
+    let Context { scene, params, settings, .. } = *ctx;
+    let profile = settings.emission_profile;
+    let n = cols.slots.len();
+    out.clear();
+    out.resize(n, Vec3::ZERO);
+    let mut beta = Vec3::ONE;
+    let mut d = dir;
+    let mut prev_bsdf_pdf: Option<f32> = None;
+    let mut shadows: Vec<Option<PendingShadow>> = vec![None; n];
+    // Scratch for `finish_shadow`, which records into a vertex (unused in value mode).
+    let mut scratch =
+        Vertex { beta, material: 0, emitter: 0, le: Vec3::ZERO, le_factor: 0.0, nee: None, scatter: None };
+    rays[0] += 1;
+    let mut next_hit = scene.embree().intersect(org, dir, 0.0, f32::INFINITY);
+    for depth in 0..=settings.max_depth {
+        let Some(hit) = next_hit else { break };
+        let dim = DIM_FIRST_VERTEX + depth * DIMS_PER_VERTEX;
+        let last = depth == settings.max_depth;
+        let (sp, material_idx, emitter) = scene.surface_and_slots(hit.prim_id, hit.u, hit.v);
+        let t = hit.t;
+        let wo = -d;
+
+        // Emission seen along the ray: non-zero in the hit emitter's own column only (every other column's
+        // emission is 0 here, and adds 0·β).
+        let cos_o = sp.ng.dot(wo);
+        let factor = profile.factor(cos_o);
+        if factor > 0.0 {
+            for (i, (sampler, &slot)) in cols.samplers.iter().zip(&cols.slots).enumerate() {
+                let mis = hit_mis(sampler, emitter, prev_bsdf_pdf, t, cos_o);
+                let e = if slot == emitter { Vec3::ONE } else { Vec3::ZERO };
+                out[i] += beta * (e * (factor * mis));
+            }
+        }
+        if last {
+            break;
+        }
+
+        let (ng, ns) = if cos_o < 0.0 { (-sp.ng, -sp.ns) } else { (sp.ng, sp.ns) };
+        let frame = Frame::from_normal(ns);
+        let wo_l = frame.to_local(wo);
+        let material: &Material = &params.materials[material_idx as usize];
+        let bsdf = material.at(wo_l);
+
+        // Each column's next-event connection, up to its shadow ray.
+        let u_point = Vec2::new(rng.get(dim + 2), rng.get(dim + 3));
+        for (shadow, sampler) in shadows.iter_mut().zip(&cols.samplers) {
+            let light =
+                if sampler.is_empty() { None } else { sampler.sample(scene, rng.get(dim), rng.get(dim + 1), u_point) };
+            *shadow = light.and_then(|ls| connect::<false>(scene, profile, &bsdf, &frame, sp.p, ng, ls, |_| Vec3::ONE));
+        }
+        let finish =
+            |shadows: &mut [Option<PendingShadow>], out: &mut [Vec3], scratch: &mut Vertex, rays: &mut [u64; 2]| {
+                for (shadow, l) in shadows.iter_mut().zip(out.iter_mut()) {
+                    finish_shadow::<false>(scene, &bsdf, shadow.take(), beta, l, scratch, rays);
+                }
+            };
+
+        let u_dir = Vec2::new(rng.get(dim + 5), rng.get(dim + 6));
+        let u_lobe = rng.get(dim + 4);
+        let Some(BsdfSample { wi: wi_l, f, pdf }) = bsdf.sample(u_dir, u_lobe) else {
+            finish(&mut shadows, out, &mut scratch, rays);
+            break;
+        };
+        let wi = frame.to_world(wi_l);
+        if pdf.is_nan() || pdf <= 0.0 || wi.dot(ng) <= 0.0 {
+            finish(&mut shadows, out, &mut scratch, rays);
+            break;
+        }
+        let mut weight = wi_l.z.abs() / pdf;
+        let beta_next = beta * f * weight;
+        if depth + 1 > settings.rr_depth {
+            let q = beta_next.max_element().clamp(0.0, RR_MAX_SURVIVAL);
+            if rng.get(dim + 7) >= q {
+                finish(&mut shadows, out, &mut scratch, rays);
+                break;
+            }
+            weight /= q;
+        }
+        rays[0] += 1;
+        next_hit = scene.embree().intersect(offset_ray_origin(sp.p, ng, wi), wi, 0.0, f32::INFINITY);
+        if let Some(h) = &next_hit {
+            scene.prefetch_triangle(h.prim_id);
+        }
+        finish(&mut shadows, out, &mut scratch, rays);
+        beta *= f * weight;
+        prev_bsdf_pdf = Some(pdf);
+        d = wi;
+    }
 }
 
 #[inline]

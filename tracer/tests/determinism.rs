@@ -4,7 +4,7 @@ mod common;
 
 use common::{look_at_camera, small_room};
 use glam::Vec3;
-use tracer::{Material, Params, PixelRef, Scene, TracerSettings, gradient_pixels, render_pixels};
+use tracer::{Material, Params, PixelRef, Renderer, Scene, TracerSettings, gradient_pixels, render_pixels};
 
 #[test]
 fn results_do_not_depend_on_thread_count() {
@@ -38,4 +38,67 @@ fn results_do_not_depend_on_thread_count() {
     let other = render_pixels(&scene, &params, &[cam], &pixels, 8, &settings, 3, 18).expect("render");
     assert_ne!(img1, other);
     assert!(img1.iter().any(|c| c.max_element() > 0.0));
+}
+
+/// A glossy metal box in the small room, so that the paths mix diffuse and specular scattering.
+fn glossy_room_params() -> Params {
+    let mut params = Params {
+        materials: vec![Material::default(); 4],
+        emission: vec![Vec3::ZERO, Vec3::splat(5.0), Vec3::splat(0.1)],
+    };
+    params.materials[3] =
+        Material { base_color: Vec3::new(0.8, 0.5, 0.2), roughness: 0.3, metallic: 0.5, specular: 0.5 };
+    params
+}
+
+#[test]
+fn columns_match_separate_basis_renders() {
+    let scene = Scene::new(small_room()).expect("scene");
+    let params = glossy_room_params();
+    let cam = look_at_camera(16, 70.0, Vec3::new(0.2, 0.1, 0.95), Vec3::new(-0.2, -0.6, -0.3));
+    let pixels: Vec<PixelRef> = (0..16).flat_map(|y| (0..16).map(move |x| PixelRef { view: 0, x, y })).collect();
+    // Russian roulette from the first bounce, so that columns share terminated paths too.
+    let settings = TracerSettings { max_depth: 6, rr_depth: 1, ..Default::default() };
+    let slots: Vec<u32> = (0..scene.emitter_slots() as u32).rev().collect();
+    let renderer = Renderer::new(&scene, &params, &settings).expect("renderer");
+    let (cols, stats) = renderer.render_emission_columns(&[cam], &pixels, &slots, 8, 3, 17).expect("columns");
+    assert_eq!(cols.len(), slots.len());
+    for (col, &k) in cols.iter().zip(&slots) {
+        let mut emission = vec![Vec3::ZERO; scene.emitter_slots()];
+        emission[k as usize] = Vec3::ONE;
+        let basis = Params { materials: params.materials.clone(), emission };
+        let alone = render_pixels(&scene, &basis, &[cam], &pixels, 8, &settings, 3, 17).expect("render");
+        assert!(
+            col.iter().zip(&alone).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)),
+            "column of emitter slot {k} differs from its own basis render"
+        );
+    }
+    // Every emitter of the room lights some pixel, and the columns traced each path once.
+    assert!(cols.iter().all(|c| c.iter().any(|v| v.max_element() > 0.0)));
+    assert_eq!(stats.paths, pixels.len() as u64 * 8);
+    assert!(renderer.render_emission_columns(&[cam], &pixels, &[99], 8, 3, 17).is_err());
+}
+
+#[test]
+fn weighted_gradients_match_one_weighting_at_a_time() {
+    let scene = Scene::new(small_room()).expect("scene");
+    let params = glossy_room_params();
+    let cam = look_at_camera(16, 70.0, Vec3::new(0.2, 0.1, 0.95), Vec3::new(-0.2, -0.6, -0.3));
+    let pixels: Vec<PixelRef> = (0..16).flat_map(|y| (0..16).map(move |x| PixelRef { view: 0, x, y })).collect();
+    let settings = TracerSettings { max_depth: 6, rr_depth: 1, ..Default::default() };
+    // The three channels, and a weighting that skips every third pixel (zero weight).
+    let unit =
+        |c: usize| -> Vec<Vec3> { vec![Vec3::from_array(std::array::from_fn(|i| f32::from(u8::from(i == c)))); 256] };
+    let sparse: Vec<Vec3> = (0..256).map(|j| if j % 3 == 0 { Vec3::ZERO } else { Vec3::new(1.0, -2.0, 0.5) }).collect();
+    let sets = [unit(0), unit(1), unit(2), sparse];
+    let renderer = Renderer::new(&scene, &params, &settings).expect("renderer");
+    let refs: Vec<&[Vec3]> = sets.iter().map(Vec::as_slice).collect();
+    let (all, stats) = renderer.gradient_pixels_weighted(&[cam], &pixels, &refs, 4, 3, 17).expect("weighted");
+    for (g, w) in all.iter().zip(&sets) {
+        let alone = gradient_pixels(&scene, &params, &[cam], &pixels, w, 4, &settings, 3, 17).expect("gradient");
+        assert_eq!(*g, alone);
+    }
+    assert!(all[0].materials[3].roughness != 0.0);
+    // The paths were traced once for the four weightings.
+    assert_eq!(stats.paths, 256 * 4);
 }

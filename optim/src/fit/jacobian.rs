@@ -23,9 +23,10 @@ pub fn emission_columns(
     emission_columns_of(ctx, materials, pixels, spp, iteration_key, &vec![true; materials.len()])
 }
 
-/// [`emission_columns`] for the objects with `wanted[k]` only; the others' columns are left empty. Each
-/// object's basis render draws the same random numbers whichever others are rendered, so a column does not
-/// depend on which columns are asked for.
+/// [`emission_columns`] for the objects with `wanted[k]` only; the others' columns are left empty. Every
+/// column is, bit for bit, the basis render of its object alone (`tracer::Renderer::render_emission_columns`:
+/// the columns share each path's continuation rays and differ in their next-event connections), so a column
+/// does not depend on which others are asked for.
 pub fn emission_columns_of(
     ctx: &Ctx<'_>,
     materials: &[tracer::Material],
@@ -35,18 +36,19 @@ pub fn emission_columns_of(
     wanted: &[bool],
 ) -> Result<Vec<Vec<[f64; 3]>>, TracerError> {
     let k_count = materials.len();
-    (0..k_count)
-        .map(|k| {
-            if !wanted.get(k).copied().unwrap_or(false) {
-                return Ok(Vec::new());
-            }
-            let mut emission = vec![glam::Vec3::ZERO; k_count];
-            emission[k] = glam::Vec3::ONE;
-            let params = tracer::Params { materials: materials.to_vec(), emission };
-            let v = ctx.render(&params, pixels, spp, iteration_key)?;
-            Ok(v.iter().map(|c| [f64::from(c.x), f64::from(c.y), f64::from(c.z)]).collect())
-        })
-        .collect()
+    let slots: Vec<u32> = (0..k_count).filter(|&k| wanted.get(k).copied().unwrap_or(false)).map(|k| k as u32).collect();
+    let mut out = vec![Vec::new(); k_count];
+    if slots.is_empty() {
+        return Ok(out);
+    }
+    let params = tracer::Params { materials: materials.to_vec(), emission: vec![glam::Vec3::ZERO; k_count] };
+    let r = tracer::Renderer::new(ctx.scene, &params, ctx.settings)?;
+    let (cols, stats) = r.render_emission_columns(ctx.cameras, pixels, &slots, spp, ctx.seed, iteration_key)?;
+    ctx.samples.add(&stats);
+    for (&k, col) in slots.iter().zip(cols) {
+        out[k as usize] = col.iter().map(|c| [f64::from(c.x), f64::from(c.y), f64::from(c.z)]).collect();
+    }
+    Ok(out)
 }
 
 /// One pixel's Jacobian row: `base_color[k]` = ∂I/∂ρ_k and `emission[k]` = ∂I/∂e_k, per channel.
@@ -156,11 +158,28 @@ impl Ctx<'_> {
         self.samples.add(&stats);
         Ok(grads)
     }
+
+    /// `tracer::Renderer::gradient_pixels_weighted`: one gradient per weighting, all from the same paths
+    /// (traced once), with this context's scene, cameras, settings and seed; the work is counted in `samples`.
+    pub fn gradient_weighted(
+        &self,
+        params: &tracer::Params,
+        pixels: &[PixelRef],
+        weight_sets: &[&[glam::Vec3]],
+        spp: u32,
+        key: u64,
+    ) -> Result<Vec<tracer::Grads>, TracerError> {
+        let r = tracer::Renderer::new(self.scene, params, self.settings)?;
+        let (grads, stats) = r.gradient_pixels_weighted(self.cameras, pixels, weight_sets, spp, self.seed, key)?;
+        self.samples.add(&stats);
+        Ok(grads)
+    }
 }
 
 /// Full Jacobian rows per pixel and channel: `rows[j][c]` holds, for every object k, ∂I_{j,c}/∂θ_k for
 /// θ = (base colour channel c, roughness, specular, emission channel c). Roughness and specular act on all
-/// channels, so each channel needs its own gradient pass (weight = unit vector of c, same paths).
+/// channels, so each channel has its own backward pass (weight = unit vector of c), all three on the same
+/// paths, traced once.
 pub fn channel_rows(
     ctx: &Ctx<'_>,
     params: &tracer::Params,
@@ -168,20 +187,25 @@ pub fn channel_rows(
     spp: u32,
     iteration_key: u64,
 ) -> Result<Vec<[Vec<[f64; 4]>; 3]>, TracerError> {
+    const UNIT: [[glam::Vec3; 1]; 3] = [[glam::Vec3::X], [glam::Vec3::Y], [glam::Vec3::Z]];
     pixels
         .par_iter()
         .map(|p| {
-            let row = |c: usize| -> Result<Vec<[f64; 4]>, TracerError> {
-                let mut w = glam::Vec3::ZERO;
-                w[c] = 1.0;
-                let g = ctx.gradient(params, std::slice::from_ref(p), &[w], spp, iteration_key)?;
-                Ok(g.materials
+            let g = ctx.gradient_weighted(
+                params,
+                std::slice::from_ref(p),
+                &[&UNIT[0], &UNIT[1], &UNIT[2]],
+                spp,
+                iteration_key,
+            )?;
+            let row = |c: usize| -> Vec<[f64; 4]> {
+                g[c].materials
                     .iter()
-                    .zip(&g.emission)
+                    .zip(&g[c].emission)
                     .map(|(m, e)| [m.base_color[c], m.roughness, m.specular, e[c]])
-                    .collect())
+                    .collect()
             };
-            Ok([row(0)?, row(1)?, row(2)?])
+            Ok([row(0), row(1), row(2)])
         })
         .collect()
 }

@@ -35,6 +35,10 @@ const TRIAL_ROUGHNESS: f64 = 0.5;
 /// a glossy object's profile over the roughness grid, at half the cost of 512 (measured below in
 /// tests/fit_glossy.rs).
 const PROFILE_PIXELS: usize = 256;
+/// Pilot columns of the emission test rendered together: each path of a render is traced once for all of
+/// them, and the columns held at once (16 × 12 bytes per test pixel: 33 MB for a house's 171 k test pixels)
+/// stay small, where all of a house's emitters × test pixels would not.
+const PILOT_COLUMNS: usize = 16;
 /// A dropped emission whose object's best base colour without it differs by more than this triggers a re-fit
 /// of emission and base colour under the chosen model: 0.02 is 4× the fit's per-object albedo noise on the
 /// default scene (mean L1 0.0023), so the tiny emissions that walls are routinely given and denied (≤ 0.003
@@ -650,9 +654,29 @@ pub fn choose_models(
     // t < 3 against 171 k pixels at 1.5 paths each). The pixels are chosen with the pilot's random numbers
     // and tested with fresh ones.
     let params = layout::to_params(&x);
-    let n_emitters = (0..k_count).filter(|&k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).count();
+    let emitting: Vec<bool> = (0..k_count).map(|k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).collect();
+    let n_emitters = emitting.iter().filter(|&&e| e).count();
     progress.phase(&format!("model selection: emission test on {} pixels, emitter", pix.len()), n_emitters as u64, 0);
     let pilot_spp = super::emission_solve::basis_spp(s.solve_spp, budget, pix.len());
+    // Where each emitter's light arrives, from the pilot columns (fixed by the materials the test starts from,
+    // so all are rendered up front), PILOT_COLUMNS columns per render: their paths are traced once per
+    // render, and the columns in memory stay a bounded number × the test pixels.
+    let mut lit_of: Vec<Vec<usize>> = vec![Vec::new(); k_count];
+    let emitters: Vec<usize> = (0..k_count).filter(|&k| emitting[k]).collect();
+    for chunk in emitters.chunks(PILOT_COLUMNS) {
+        let wanted: Vec<bool> = (0..k_count).map(|o| chunk.contains(&o)).collect();
+        let pilot = jacobian::emission_columns_of(
+            ctx,
+            &params.materials,
+            &pix,
+            pilot_spp,
+            key::SELECT_EMISSION_COLUMNS,
+            &wanted,
+        )?;
+        for &k in chunk {
+            lit_of[k] = (0..test.len()).filter(|&j| pilot[k][j].iter().any(|&v| v != 0.0)).collect();
+        }
+    }
     let mut emits = vec![false; k_count];
     let mut material_refit = false;
     let mut tested = 0;
@@ -664,20 +688,7 @@ pub fn choose_models(
         }
         progress.set_position(tested);
         tested += 1;
-        let only_k: Vec<bool> = (0..k_count).map(|o| o == k).collect();
-        // One column at a time (a column does not depend on which others are rendered): emitters × test pixels
-        // of columns would not fit in memory on a house.
-        let pilot = jacobian::emission_columns_of(
-            ctx,
-            &params.materials,
-            &pix,
-            pilot_spp,
-            key::SELECT_EMISSION_COLUMNS,
-            &only_k,
-        )?
-        .swap_remove(k);
-        let lit: Vec<usize> = (0..test.len()).filter(|&j| pilot[j].iter().any(|&v| v != 0.0)).collect();
-        drop(pilot);
+        let lit = std::mem::take(&mut lit_of[k]);
         // The emitter's own pixels (where its emission is seen directly) and the others it lights, each drawn
         // up to half the budget plus the other's unused share: drawn from all lit pixels alike, a small visible
         // lamp's few dozen own pixels, which carry most of the evidence, were a heavy tail of the paired
