@@ -121,6 +121,20 @@ fn cannot_pass(mean: f64, se: f64, n: usize, n_full: usize, min_gain: f64) -> bo
     upper < min_gain || upper < T_KEEP * se * (n as f64 / n_full as f64).sqrt()
 }
 
+/// Whether a test can stop after `n` of its `n_full` pixels because on all of them it would pass beyond
+/// reasonable doubt: the lower confidence bound of the mean gain, `mean − T_KEEP · se` (one-sided 0.1 %), is
+/// above what a pass needs, both the gain `min_gain` and `T_KEEP` standard errors of the full sample. The
+/// mirror of [`cannot_pass`]: a term the full test would reject is kept with probability ≲ 0.1 % per test, and
+/// a stopped test's t-statistic and gain, on its `n` pixels, pass by themselves (t > `T_KEEP` and the gain
+/// above `min_gain`).
+fn clearly_passes(mean: f64, se: f64, n: usize, n_full: usize, min_gain: f64) -> bool {
+    if n < 2 || n >= n_full {
+        return false;
+    }
+    let lower = mean - T_KEEP * se;
+    lower > min_gain && lower > T_KEEP * se * (n as f64 / n_full as f64).sqrt()
+}
+
 /// The paired differences of the lobe test on `rows` of `test`: L1 of the diffuse render minus L1 of the
 /// render with the lobes, per pixel (positive where the lobe fits better).
 fn lobe_differences(test: &[Sample], rows: &[usize], i_d: &[glam::Vec3], i_t: &[glam::Vec3]) -> Vec<f64> {
@@ -529,9 +543,11 @@ pub fn choose_models(
         }
         // Common random numbers for both renders: the paired differences then carry little path noise. The
         // test looks at each object's pixels in a fixed random order, first at [`FIRST_LOOK`] of them, then at
-        // twice as many per look up to all of them, and an object whose lobe cannot plausibly pass on all of
-        // them stops ([`cannot_pass`]); the rest are decided on exactly the pixels, random numbers and renders of a
-        // single look at all of them (random numbers are keyed by the pixel).
+        // twice as many per look up to all of them; an object whose lobe cannot plausibly pass on all of them
+        // stops ([`cannot_pass`]), and so does one whose lobe would pass on all of them beyond reasonable doubt
+        // ([`clearly_passes`]: a large glossy object's lobe gains at t = 10–25 on its 2048 pixels). The rest
+        // are decided on exactly the pixels, random numbers and renders of a single look at all of them (random
+        // numbers are keyed by the pixel).
         let key = key::SELECT_LOBE_TEST;
         let order_rank = |t: &Sample| streams::uniform(ctx.seed, draw::LOBE_TEST_ORDER, streams::pixel_key(t.pixel), 0);
         let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); k_count];
@@ -549,6 +565,7 @@ pub fn choose_models(
         let mut open: Vec<usize> = (0..k_count).filter(|&k| free[k] && !rows_of[k].is_empty()).collect();
         let mut looked = vec![0usize; k_count];
         let mut stopped = vec![false; k_count];
+        let mut passed = vec![false; k_count];
         let mut n_look = FIRST_LOOK;
         let mut rendered = 0usize;
         let mut look = 1;
@@ -586,6 +603,10 @@ pub fn choose_models(
                     stopped[k] = true;
                     return false;
                 }
+                if clearly_passes(mean, se, d.len(), rows_of[k].len(), MIN_GAIN * mean_target) {
+                    passed[k] = true;
+                    return false;
+                }
                 true
             });
             n_look *= 2;
@@ -602,6 +623,8 @@ pub fn choose_models(
                     d.len(),
                     rows_of[k].len()
                 )
+            } else if passed[k] {
+                format!("{} of its {} pixels (stopped there: on all of them it would pass)", d.len(), rows_of[k].len())
             } else {
                 format!("{} pixels", d.len())
             };
@@ -985,5 +1008,25 @@ mod tests {
         assert!(!cannot_pass(-0.5, 0.3, 256, 2048, 0.0));
         // …while a mean of −0.7 at that noise (upper 0.2) cannot reach it.
         assert!(cannot_pass(-0.7, 0.3, 256, 2048, 0.0));
+    }
+
+    #[test]
+    fn a_test_passes_early_only_beyond_reasonable_doubt() {
+        // A gain of 1 at se 0.1 after 256 of 2048 pixels: lower bound 0.7, above 3 · 0.1 · √(1/8) ≈ 0.11.
+        assert!(clearly_passes(1.0, 0.1, 256, 2048, 0.0));
+        // The same when the pass also needs a gain of 0.8: the lower bound 0.7 is below it, so the test goes on.
+        assert!(!clearly_passes(1.0, 0.1, 256, 2048, 0.8));
+        // t = 4 on 256 pixels (mean 0.4, se 0.1): lower bound 0.1, under the 0.11 a pass on all pixels needs.
+        assert!(!clearly_passes(0.4, 0.1, 256, 2048, 0.0));
+        // A worse fit never passes early, and the last look is decided by its own rule.
+        assert!(!clearly_passes(-1.0, 0.1, 256, 2048, 0.0));
+        assert!(!clearly_passes(1.0, 0.1, 2048, 2048, 0.0));
+        // Wherever it stops, the gain on the pixels seen passes the test's own rule: t > T_KEEP and the gain
+        // above the minimum.
+        for (mean, se, min_gain) in [(1.0, 0.1, 0.0), (0.9, 0.05, 0.5), (0.2, 0.01, 0.1)] {
+            if clearly_passes(mean, se, 512, 2048, min_gain) {
+                assert!(mean / se > T_KEEP && mean > min_gain);
+            }
+        }
     }
 }
