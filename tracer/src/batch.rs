@@ -195,16 +195,16 @@ impl<'a> Renderer<'a> {
         let n = slots.len();
         let per_pixel: Vec<(Vec<Vec3>, [u64; 2], u64)> = pixels
             .par_iter()
-            .map_init(Vec::new, |out, &p| {
+            .map_init(integrator::ColumnScratch::default, |scratch, &p| {
                 let mut sums = vec![DVec3::ZERO; n];
                 let mut rays = [0; 2];
                 let mut discarded = 0;
                 for s in 0..spp {
                     let rng = PathSampler::new(seed, Stream::Value, iteration, key(p), s);
                     let (o, d) = primary(cameras, p, &rng);
-                    integrator::trace_columns(&ctx, &cols, o, d, &rng, out, &mut rays);
+                    integrator::trace_columns(&ctx, &cols, o, d, &rng, scratch, &mut rays);
                     let mut dropped = false;
-                    for (sum, l) in sums.iter_mut().zip(out.iter()) {
+                    for (sum, l) in sums.iter_mut().zip(&scratch.out) {
                         if l.is_finite() {
                             *sum += l.as_dvec3();
                         } else {

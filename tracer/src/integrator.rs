@@ -19,6 +19,7 @@
 //! β_k ⊙ f_nee,k·g_k·∂Le/∂e at every NEE connection.
 
 use crate::bsdf::{BsdfSample, Material, MaterialAt, MaterialGrad};
+use crate::embree::RayHit;
 use crate::lights::{LightSample, LightSampler};
 use crate::numerics::{Frame, offset_ray_origin, power_heuristic};
 use crate::params::{EmissionProfile, Grads, MaterialGradSum, Params, TracerSettings};
@@ -223,6 +224,53 @@ fn connect<const GRAD: bool>(
     Some(PendingShadow { from, dir: to - from, wi_l, pdf_l, le, le_factor, emitter: light_emitter, eval })
 }
 
+/// The continuation sampled at a vertex (`wi_l`, `f`, `pdf` of the BSDF sample, in the shading `frame`; `ng`
+/// the geometric normal on the viewer's side; `beta` the throughput so far): its world direction and its
+/// weight |cos|/(pdf·q) after Russian roulette with survival probability q ≥ `rr_floor`, the roulette's number
+/// drawn from dimension `dim_rr`; None where the path ends there (an invalid pdf, a direction below the
+/// surface, or the roulette).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn continuation(
+    frame: &Frame,
+    ng: Vec3,
+    BsdfSample { wi: wi_l, f, pdf }: BsdfSample,
+    beta: Vec3,
+    depth: u32,
+    settings: &TracerSettings,
+    rr_floor: f32,
+    rng: &PathSampler,
+    dim_rr: u32,
+) -> Option<(Vec3, f32)> {
+    let wi = frame.to_world(wi_l);
+    if pdf.is_nan() || pdf <= 0.0 || wi.dot(ng) <= 0.0 {
+        return None;
+    }
+    let mut weight = wi_l.z.abs() / pdf;
+    let beta_next = beta * f * weight;
+    if depth + 1 > settings.rr_depth {
+        let q = beta_next.max_element().clamp(rr_floor, RR_MAX_SURVIVAL);
+        if rng.get(dim_rr) >= q {
+            return None;
+        }
+        weight /= q;
+    }
+    Some((wi, weight))
+}
+
+/// The closest hit of the continuation from `p` along `wi` (the origin offset off the surface with geometric
+/// normal `ng`), counted in `rays`, with the hit triangle's record prefetched: the caller traces its pending
+/// shadow ray while the record loads.
+#[inline]
+fn next_hit(scene: &Scene, p: Vec3, ng: Vec3, wi: Vec3, rays: &mut [u64; 2]) -> Option<RayHit> {
+    rays[0] += 1;
+    let hit = scene.embree().intersect(offset_ray_origin(p, ng, wi), wi, 0.0, f32::INFINITY);
+    if let Some(h) = &hit {
+        scene.prefetch_triangle(h.prim_id);
+    }
+    hit
+}
+
 /// The path loop of [`trace`]; `GRAD` = gradient mode.
 ///
 /// Order of the Embree queries: a vertex's shadow ray is traced after the closest-hit query of the next ray
@@ -298,35 +346,18 @@ fn trace_mode<const GRAD: bool>(
         } else {
             bsdf.sample(u_dir, u_lobe).map(|s| (s, MaterialGrad::default()))
         };
-        let Some((BsdfSample { wi: wi_l, f, pdf }, d_f)) = sampled else {
+        let rr_floor = if GRAD { RR_MIN_SURVIVAL_GRADIENT } else { 0.0 };
+        let continued = sampled.and_then(|(sample, d_f)| {
+            let (wi, weight) = continuation(&frame, ng, sample, beta, depth, settings, rr_floor, rng, dim + 7)?;
+            Some((wi, weight, sample.f, sample.pdf, d_f))
+        });
+        let Some((wi, weight, f, pdf, d_f)) = continued else {
             finish_shadow::<GRAD>(scene, &bsdf, shadow, beta, &mut l, &mut v, rays);
             record_if::<GRAD>(record, v);
             break;
         };
-        let wi = frame.to_world(wi_l);
-        if pdf.is_nan() || pdf <= 0.0 || wi.dot(ng) <= 0.0 {
-            finish_shadow::<GRAD>(scene, &bsdf, shadow, beta, &mut l, &mut v, rays);
-            record_if::<GRAD>(record, v);
-            break;
-        }
-        let mut weight = wi_l.z.abs() / pdf;
-        let beta_next = beta * f * weight;
-        if depth + 1 > settings.rr_depth {
-            let floor = if GRAD { RR_MIN_SURVIVAL_GRADIENT } else { 0.0 };
-            let q = beta_next.max_element().clamp(floor, RR_MAX_SURVIVAL);
-            if rng.get(dim + 7) >= q {
-                finish_shadow::<GRAD>(scene, &bsdf, shadow, beta, &mut l, &mut v, rays);
-                record_if::<GRAD>(record, v);
-                break;
-            }
-            weight /= q;
-        }
         // The next ray's closest hit first, then this vertex's shadow ray while the hit's record loads.
-        rays[0] += 1;
-        next_hit = scene.embree().intersect(offset_ray_origin(sp.p, ng, wi), wi, 0.0, f32::INFINITY);
-        if let Some(h) = &next_hit {
-            scene.prefetch_triangle(h.prim_id);
-        }
+        next_hit = self::next_hit(scene, sp.p, ng, wi, rays);
         finish_shadow::<GRAD>(scene, &bsdf, shadow, beta, &mut l, &mut v, rays);
         v.scatter = Some(ScatterRecord { d_f, f, weight });
         record_if::<GRAD>(record, v);
@@ -347,7 +378,16 @@ pub(crate) struct Columns {
     pub slots: Vec<u32>,
 }
 
-/// One path's estimate for every column of `cols` at once: entry i of `out` (cleared and resized) is exactly
+/// What [`trace_columns`] writes and reuses from path to path (one per thread, not one per path): the
+/// estimate per column, and each column's pending shadow ray at the current vertex.
+#[derive(Debug, Default)]
+pub(crate) struct ColumnScratch {
+    /// The last path's estimate per column.
+    pub out: Vec<Vec3>,
+    shadows: Vec<Option<PendingShadow>>,
+}
+
+/// One path's estimate for every column of `cols` at once: entry i of `scratch.out` is exactly
 /// what [`trace`] in value mode returns with `Params::emission` = 1 at `cols.slots[i]` and 0 elsewhere (the
 /// basis image of that emitter), bit for bit. The columns share everything that does not depend on which
 /// object emits — the camera ray, every BSDF-sampled continuation and its Russian roulette (the throughput
@@ -362,21 +402,22 @@ pub(crate) fn trace_columns(
     org: Vec3,
     dir: Vec3,
     rng: &PathSampler,
-    out: &mut Vec<Vec3>,
+    scratch: &mut ColumnScratch,
     rays: &mut [u64; 2],
 ) {
     let Context { scene, params, settings, .. } = *ctx;
     let profile = settings.emission_profile;
     let n = cols.slots.len();
+    let ColumnScratch { out, shadows } = scratch;
     out.clear();
     out.resize(n, Vec3::ZERO);
+    shadows.clear();
+    shadows.resize(n, None);
     let mut beta = Vec3::ONE;
     let mut d = dir;
     let mut prev_bsdf_pdf: Option<f32> = None;
-    let mut shadows: Vec<Option<PendingShadow>> = vec![None; n];
-    // Scratch for `finish_shadow`, which records into a vertex (unused in value mode).
-    let mut scratch =
-        Vertex { beta, material: 0, emitter: 0, le: Vec3::ZERO, le_factor: 0.0, nee: None, scatter: None };
+    // What `finish_shadow` records its connection into (unused in value mode).
+    let mut vertex = Vertex { beta, material: 0, emitter: 0, le: Vec3::ZERO, le_factor: 0.0, nee: None, scatter: None };
     rays[0] += 1;
     let mut next_hit = scene.embree().intersect(org, dir, 0.0, f32::INFINITY);
     for depth in 0..=settings.max_depth {
@@ -416,39 +457,24 @@ pub(crate) fn trace_columns(
             *shadow = light.and_then(|ls| connect::<false>(scene, profile, &bsdf, &frame, sp.p, ng, ls, |_| Vec3::ONE));
         }
         let finish =
-            |shadows: &mut [Option<PendingShadow>], out: &mut [Vec3], scratch: &mut Vertex, rays: &mut [u64; 2]| {
+            |shadows: &mut [Option<PendingShadow>], out: &mut [Vec3], vertex: &mut Vertex, rays: &mut [u64; 2]| {
                 for (shadow, l) in shadows.iter_mut().zip(out.iter_mut()) {
-                    finish_shadow::<false>(scene, &bsdf, shadow.take(), beta, l, scratch, rays);
+                    finish_shadow::<false>(scene, &bsdf, shadow.take(), beta, l, vertex, rays);
                 }
             };
 
         let u_dir = Vec2::new(rng.get(dim + 5), rng.get(dim + 6));
         let u_lobe = rng.get(dim + 4);
-        let Some(BsdfSample { wi: wi_l, f, pdf }) = bsdf.sample(u_dir, u_lobe) else {
-            finish(&mut shadows, out, &mut scratch, rays);
+        let continued = bsdf.sample(u_dir, u_lobe).and_then(|sample| {
+            let (wi, weight) = continuation(&frame, ng, sample, beta, depth, settings, 0.0, rng, dim + 7)?;
+            Some((wi, weight, sample.f, sample.pdf))
+        });
+        let Some((wi, weight, f, pdf)) = continued else {
+            finish(shadows, out, &mut vertex, rays);
             break;
         };
-        let wi = frame.to_world(wi_l);
-        if pdf.is_nan() || pdf <= 0.0 || wi.dot(ng) <= 0.0 {
-            finish(&mut shadows, out, &mut scratch, rays);
-            break;
-        }
-        let mut weight = wi_l.z.abs() / pdf;
-        let beta_next = beta * f * weight;
-        if depth + 1 > settings.rr_depth {
-            let q = beta_next.max_element().clamp(0.0, RR_MAX_SURVIVAL);
-            if rng.get(dim + 7) >= q {
-                finish(&mut shadows, out, &mut scratch, rays);
-                break;
-            }
-            weight /= q;
-        }
-        rays[0] += 1;
-        next_hit = scene.embree().intersect(offset_ray_origin(sp.p, ng, wi), wi, 0.0, f32::INFINITY);
-        if let Some(h) = &next_hit {
-            scene.prefetch_triangle(h.prim_id);
-        }
-        finish(&mut shadows, out, &mut scratch, rays);
+        next_hit = self::next_hit(scene, sp.p, ng, wi, rays);
+        finish(shadows, out, &mut vertex, rays);
         beta *= f * weight;
         prev_bsdf_pdf = Some(pdf);
         d = wi;

@@ -4,21 +4,38 @@ mod common;
 
 use common::{look_at_camera, small_room};
 use glam::Vec3;
-use tracer::{Material, Params, PixelRef, Renderer, Scene, TracerSettings, gradient_pixels, render_pixels};
+use tracer::{Camera, Material, Params, PixelRef, Renderer, Scene, TracerSettings, gradient_pixels, render_pixels};
 
-#[test]
-fn results_do_not_depend_on_thread_count() {
-    let scene = Scene::new(small_room()).expect("scene");
+/// What every test here renders: the small room with a glossy, half-metallic box (so that paths mix diffuse
+/// and specular scattering), two emitters, a 16×16 view of all of it, Russian roulette from the first bounce.
+struct GlossyRoom {
+    scene: Scene,
+    params: Params,
+    cam: Camera,
+    pixels: Vec<PixelRef>,
+    settings: TracerSettings,
+}
+
+fn glossy_room() -> GlossyRoom {
     let mut params = Params {
         materials: vec![Material::default(); 4],
         emission: vec![Vec3::ZERO, Vec3::splat(5.0), Vec3::splat(0.1)],
     };
     params.materials[3] =
         Material { base_color: Vec3::new(0.8, 0.5, 0.2), roughness: 0.3, metallic: 0.5, specular: 0.5 };
-    let cam = look_at_camera(16, 70.0, Vec3::new(0.2, 0.1, 0.95), Vec3::new(-0.2, -0.6, -0.3));
-    let pixels: Vec<PixelRef> = (0..16).flat_map(|y| (0..16).map(move |x| PixelRef { view: 0, x, y })).collect();
+    GlossyRoom {
+        scene: Scene::new(small_room()).expect("scene"),
+        params,
+        cam: look_at_camera(16, 70.0, Vec3::new(0.2, 0.1, 0.95), Vec3::new(-0.2, -0.6, -0.3)),
+        pixels: (0..16).flat_map(|y| (0..16).map(move |x| PixelRef { view: 0, x, y })).collect(),
+        settings: TracerSettings { max_depth: 6, rr_depth: 1, ..Default::default() },
+    }
+}
+
+#[test]
+fn results_do_not_depend_on_thread_count() {
+    let GlossyRoom { scene, params, cam, pixels, settings } = glossy_room();
     let weights: Vec<Vec3> = (0..pixels.len()).map(|j| Vec3::splat(if j % 3 == 0 { -1.0 } else { 1.0 })).collect();
-    let settings = TracerSettings { max_depth: 6, rr_depth: 1, ..Default::default() };
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
         pool.install(|| {
@@ -40,25 +57,10 @@ fn results_do_not_depend_on_thread_count() {
     assert!(img1.iter().any(|c| c.max_element() > 0.0));
 }
 
-/// A glossy metal box in the small room, so that the paths mix diffuse and specular scattering.
-fn glossy_room_params() -> Params {
-    let mut params = Params {
-        materials: vec![Material::default(); 4],
-        emission: vec![Vec3::ZERO, Vec3::splat(5.0), Vec3::splat(0.1)],
-    };
-    params.materials[3] =
-        Material { base_color: Vec3::new(0.8, 0.5, 0.2), roughness: 0.3, metallic: 0.5, specular: 0.5 };
-    params
-}
-
 #[test]
 fn columns_match_separate_basis_renders() {
-    let scene = Scene::new(small_room()).expect("scene");
-    let params = glossy_room_params();
-    let cam = look_at_camera(16, 70.0, Vec3::new(0.2, 0.1, 0.95), Vec3::new(-0.2, -0.6, -0.3));
-    let pixels: Vec<PixelRef> = (0..16).flat_map(|y| (0..16).map(move |x| PixelRef { view: 0, x, y })).collect();
-    // Russian roulette from the first bounce, so that columns share terminated paths too.
-    let settings = TracerSettings { max_depth: 6, rr_depth: 1, ..Default::default() };
+    // Russian roulette from the first bounce (the room's settings): the columns share terminated paths too.
+    let GlossyRoom { scene, params, cam, pixels, settings } = glossy_room();
     let slots: Vec<u32> = (0..scene.emitter_slots() as u32).rev().collect();
     let renderer = Renderer::new(&scene, &params, &settings).expect("renderer");
     let (cols, stats) = renderer.render_emission_columns(&[cam], &pixels, &slots, 8, 3, 17).expect("columns");
@@ -81,11 +83,7 @@ fn columns_match_separate_basis_renders() {
 
 #[test]
 fn weighted_gradients_match_one_weighting_at_a_time() {
-    let scene = Scene::new(small_room()).expect("scene");
-    let params = glossy_room_params();
-    let cam = look_at_camera(16, 70.0, Vec3::new(0.2, 0.1, 0.95), Vec3::new(-0.2, -0.6, -0.3));
-    let pixels: Vec<PixelRef> = (0..16).flat_map(|y| (0..16).map(move |x| PixelRef { view: 0, x, y })).collect();
-    let settings = TracerSettings { max_depth: 6, rr_depth: 1, ..Default::default() };
+    let GlossyRoom { scene, params, cam, pixels, settings } = glossy_room();
     // The three channels, and a weighting that skips every third pixel (zero weight).
     let unit =
         |c: usize| -> Vec<Vec3> { vec![Vec3::from_array(std::array::from_fn(|i| f32::from(u8::from(i == c)))); 256] };

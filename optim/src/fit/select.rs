@@ -678,15 +678,17 @@ pub fn choose_models(
     // t < 3 against 171 k pixels at 1.5 paths each). The pixels are chosen with the pilot's random numbers
     // and tested with fresh ones.
     let params = layout::to_params(&x);
-    let emitting: Vec<bool> = (0..k_count).map(|k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).collect();
-    let n_emitters = emitting.iter().filter(|&&e| e).count();
-    progress.phase(&format!("model selection: emission test on {} pixels, emitter", pix.len()), n_emitters as u64, 0);
+    let emitters: Vec<usize> = (0..k_count).filter(|&k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).collect();
+    progress.phase(
+        &format!("model selection: emission test on {} pixels, emitter", pix.len()),
+        emitters.len() as u64,
+        0,
+    );
     let pilot_spp = super::emission_solve::basis_spp(s.solve_spp, budget, pix.len());
     // Where each emitter's light arrives, from the pilot columns (fixed by the materials the test starts from,
     // so all are rendered up front), PILOT_COLUMNS columns per render: their paths are traced once per
     // render, and the columns in memory stay a bounded number × the test pixels.
     let mut lit_of: Vec<Vec<usize>> = vec![Vec::new(); k_count];
-    let emitters: Vec<usize> = (0..k_count).filter(|&k| emitting[k]).collect();
     for chunk in emitters.chunks(PILOT_COLUMNS) {
         let wanted: Vec<bool> = (0..k_count).map(|o| chunk.contains(&o)).collect();
         let pilot = jacobian::emission_columns_of(
