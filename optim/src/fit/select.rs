@@ -320,22 +320,38 @@ struct ArmsAt {
 }
 
 /// The last look of an emitter's test on the pixels its light reaches: the drawn test rows `on` (indices into
-/// the test pixels) with their pixels, photo values, stratum (the emitter's own pixels or others) and weights,
-/// the two arms (the model, and the model without the emission after `delta` on its base colour), and the
-/// stratified mean gain with its t; `stopped` when the look was not the last one planned.
+/// the test pixels), the change `delta` of the emitter's base colour refitted without its emission, and the
+/// stratified mean gain with its t; `stopped` when the look was not the last one planned, and why.
 struct EmissionLook {
     on: Vec<usize>,
-    px: Vec<PixelRef>,
-    tgt: Vec<[f64; 3]>,
-    is_own: Vec<bool>,
     /// The mean photo L1 over all lit pixels (the stratified estimate), which the gain is relative to.
     mean_lit: f64,
-    pred: Vec<[f64; 3]>,
-    without: Vec<[f64; 3]>,
     delta: [f64; 3],
     gain: f64,
     t: f64,
-    stopped: bool,
+    stopped: Option<Stop>,
+}
+
+/// Why a sequential test stopped before its last look.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stop {
+    /// [`cannot_pass`].
+    CannotPass,
+    /// [`clearly_passes`].
+    ClearlyPasses,
+}
+
+/// Drawn pixels of a stratum (the emitter's own pixels, or the others it lights) before the emission test may
+/// stop on a clear pass, unless all of the stratum's pixels are in: the standard error of a stratum's mean
+/// from fewer is itself too uncertain to rule out chance (with 16 values, the sample standard deviation is
+/// within ±35 % of the true one at 95 %).
+const STRATUM_PIXELS: usize = 16;
+
+/// Whether every stratum's spread is known well enough for a clear pass: each `(drawn, all)` stratum has at
+/// least [`STRATUM_PIXELS`] of its pixels in the look, or all of them. The standard error of a stratum seen in
+/// a handful of pixels (a lamp's few own pixels at the first look) can be far too small.
+fn strata_known(strata: &[(usize, usize)]) -> bool {
+    strata.iter().all(|&(drawn, all)| drawn == all || drawn >= STRATUM_PIXELS)
 }
 
 /// Pixels an object must be seen in for its emission to be tested on them ([`glimpse_test`]): with fewer, a
@@ -754,12 +770,14 @@ pub fn choose_models(
             p
         };
         // The test looks at FIRST_LOOK of the drawn pixels, then twice as many per look (each stratum in
-        // proportion), and stops when it cannot pass on all of them ([`cannot_pass`]); a test that goes on to all
-        // of them is decided on exactly the renders of a single look (every estimate is keyed by the pixel).
+        // proportion), and stops when it cannot pass on all of them ([`cannot_pass`]) or would pass on all of
+        // them beyond reasonable doubt ([`clearly_passes`]: a visible lamp or window gains at t = 7–240 on its
+        // 2048 pixels, docs/optim/design-measurements.md); a test that goes on to all of them is decided on
+        // exactly the renders of a single look (every estimate is keyed by the pixel).
         // Per test pixel: the two arms and k's base-colour column.
         let mut cache: std::collections::HashMap<usize, ArmsAt> = std::collections::HashMap::new();
         let mut look_size = FIRST_LOOK.min(n_full);
-        let EmissionLook { on, px, tgt, is_own, mean_lit, pred, without, delta, gain, t, stopped } = loop {
+        let EmissionLook { on, mean_lit, delta, gain, t, stopped } = loop {
             let part = |n: usize| if look_size >= n_full { n } else { (n * look_size).div_ceil(n_full) };
             let (a, b) = (part(n_own), part(n_other));
             let mut on: Vec<usize> = own[..a].iter().chain(&other[..b]).copied().collect();
@@ -774,7 +792,6 @@ pub fn choose_models(
                 cache.insert(j, ArmsAt { pred: new_pred[i], without: new_without[i], column: new_col[i] });
             }
             let (w_own, w_other) = (share(n_lit_own, a), share(n_lit_other, b));
-            let px: Vec<PixelRef> = on.iter().map(|&j| pix[j]).collect();
             let tgt: Vec<[f64; 3]> = on.iter().map(|&j| target(&test[j])).collect();
             let is_own: Vec<bool> = on.iter().map(|&j| test[j].object == Some(k as u32)).collect();
             // Row weights summing to 1 over the drawn pixels.
@@ -796,10 +813,21 @@ pub fn choose_models(
             let (gain, se) = linear::stratified_mean_se(&d, &is_own, w_own, w_other);
             let mean_lit = tgt.iter().zip(&row_w).map(|(t, w)| w * l1(*t, [0.0; 3])).sum::<f64>();
             let full = on.len() == n_full;
-            let stop = !full && cannot_pass(gain, se, on.len(), n_full, MIN_GAIN * 1e-2 * mean_lit);
-            if full || stop {
+            let min_gain = MIN_GAIN * 1e-2 * mean_lit;
+            let stop = !full && cannot_pass(gain, se, on.len(), n_full, min_gain);
+            let pass = !full
+                && strata_known(&[(a, n_own), (b, n_other)])
+                && clearly_passes(gain, se, on.len(), n_full, min_gain);
+            if full || stop || pass {
                 let t = linear::t_statistic(gain, se);
-                break EmissionLook { on, px, tgt, is_own, mean_lit, pred, without, delta, gain, t, stopped: stop };
+                let stopped = if stop {
+                    Some(Stop::CannotPass)
+                } else if pass {
+                    Some(Stop::ClearlyPasses)
+                } else {
+                    None
+                };
+                break EmissionLook { on, mean_lit, delta, gain, t, stopped };
             }
             look_size *= 2;
         };
@@ -812,17 +840,40 @@ pub fn choose_models(
         // own pixels: there the two models differ to first order, while the pixels it lights were fitted
         // around the incumbent model (a metal box under a lamp lost to its own emission by 4.8 % on all the
         // lit pixels and won by a wide margin on its own).
+        // The comparison is on all the drawn own pixels, also when the test stopped on a clear pass before it
+        // looked at them all: a light that clearly lights the room is still held to its lobe alternative on
+        // every own pixel the full test would have used (their arms are rendered here if the looks had not).
         let mut lobe: Option<LobeAlternative> = None;
-        let own_rows: Vec<usize> = (0..on.len()).filter(|&j| is_own[j]).collect();
+        let mut own_rows: Vec<usize> = own.clone();
+        own_rows.sort_unstable();
         if beats(t, rel) && free[k] && own_rows.len() >= 2 {
+            let missing: Vec<usize> = own_rows.iter().copied().filter(|j| !cache.contains_key(j)).collect();
+            if !missing.is_empty() {
+                let missing_px: Vec<PixelRef> = missing.iter().map(|&j| pix[j]).collect();
+                let m_pred = arm_on(&params, &missing_px)?;
+                let m_without = arm_on(&no_k, &missing_px)?;
+                let m_col = base_color_column(ctx, s, &params, k, &missing_px)?;
+                for (i, &j) in missing.iter().enumerate() {
+                    cache.insert(j, ArmsAt { pred: m_pred[i], without: m_without[i], column: m_col[i] });
+                }
+            }
             let x_alt = best_lobe_without_emission(ctx, s, &profile_samples(ctx, sets, k), &x, k)?;
-            let own_px: Vec<PixelRef> = own_rows.iter().map(|&j| px[j]).collect();
+            let own_px: Vec<PixelRef> = own_rows.iter().map(|&j| pix[j]).collect();
+            let own_tgt: Vec<[f64; 3]> = own_rows.iter().map(|&j| target(&test[j])).collect();
+            let own_pred: Vec<[f64; 3]> = own_rows.iter().map(|j| cache[j].pred).collect();
+            // The diffuse model without emission at the base colour refitted by the test (`delta`).
+            let own_without: Vec<[f64; 3]> = own_rows
+                .iter()
+                .map(|j| {
+                    let (w, col) = (cache[j].without, cache[j].column);
+                    std::array::from_fn(|c| w[c] + col[c] * delta[c])
+                })
+                .collect();
             let alt = arm_on(&layout::to_params(&x_alt), &own_px)?;
-            let mean_own = own_rows.iter().map(|&j| l1(tgt[j], [0.0; 3])).sum::<f64>() / own_rows.len() as f64;
+            let mean_own = own_tgt.iter().map(|t| l1(*t, [0.0; 3])).sum::<f64>() / own_rows.len() as f64;
             let mean_own = mean_own.max(f64::MIN_POSITIVE);
-            let paired = |a: &dyn Fn(usize) -> [f64; 3], b: &dyn Fn(usize) -> [f64; 3]| {
-                let d: Vec<f64> =
-                    own_rows.iter().enumerate().map(|(i, &j)| l1(tgt[j], a(i)) - l1(tgt[j], b(i))).collect();
+            let paired = |a: &[[f64; 3]], b: &[[f64; 3]]| {
+                let d: Vec<f64> = (0..own_tgt.len()).map(|i| l1(own_tgt[i], a[i]) - l1(own_tgt[i], b[i])).collect();
                 let (gain, t) = paired_t(&d);
                 (gain / mean_own, t)
             };
@@ -830,8 +881,8 @@ pub fn choose_models(
             // refitted `without` arm). Random numbers are keyed by the pixel, so the own pixels of the arms
             // rendered above are the same estimates as a render of these pixels alone.
             lobe = Some(LobeAlternative {
-                emission_against_lobe: paired(&|i| alt[i], &|i| pred[own_rows[i]]),
-                lobe_against_diffuse: paired(&|i| without[own_rows[i]], &|i| alt[i]),
+                emission_against_lobe: paired(&alt, &own_pred),
+                lobe_against_diffuse: paired(&own_without, &alt),
                 x: x_alt,
             });
         }
@@ -861,11 +912,20 @@ pub fn choose_models(
             emits[k] = true;
             let against_lobe = lobe.as_ref().map_or(String::new(), |l| {
                 let (rel_alt, t_alt) = l.emission_against_lobe;
-                format!("; against its best lobe without emission by {:.3} % (t = {t_alt:.1})", 100.0 * rel_alt)
+                format!(
+                    "; against its best lobe without emission by {:.3} % on its {} own pixels (t = {t_alt:.1})",
+                    100.0 * rel_alt,
+                    own_rows.len()
+                )
             });
+            let stop = if stopped == Some(Stop::ClearlyPasses) {
+                format!(" (stopped there, of {n_full} drawn: on all of them it would pass)")
+            } else {
+                String::new()
+            };
             why[k].push(format!(
-                "emission kept: without it the {test_name} L1 of the {} pixels its light reaches (of {}) rises by \
-                 {:.3} % of their mean radiance (t = {t:.1}){against_lobe}",
+                "emission kept: without it the {test_name} L1 of the {} pixels its light reaches (of {}){stop} rises \
+                 by {:.3} % of their mean radiance (t = {t:.1}){against_lobe}",
                 on.len(),
                 lit.len(),
                 100.0 * rel
@@ -890,10 +950,16 @@ pub fn choose_models(
             } else if delta.iter().any(|d| d.abs() > REFIT_MATERIAL) {
                 material_refit = true;
             }
+            let early = if stopped == Some(Stop::ClearlyPasses) {
+                format!(" on {} of the {n_full} pixels drawn among those its light reaches", on.len())
+            } else {
+                String::new()
+            };
             why[k].push(format!(
-                "emission {e:.4?} dropped: it beats the diffuse model without it (t = {t:.1}) but not its best {kind} \
-                 lobe without emission (roughness {r:.3}, specular {sp:.3}: the emission changes the {test_name} L1 \
-                 by {:+.4} %, t = {t_alt:.1}; needs t > {T_KEEP}); {}",
+                "emission {e:.4?} dropped: it beats the diffuse model without it{early} (t = {t:.1}) but not its best \
+                 {kind} lobe without emission on its {} own pixels (roughness {r:.3}, specular {sp:.3}: the emission \
+                 changes the {test_name} L1 by {:+.4} %, t = {t_alt:.1}; needs t > {T_KEEP}); {}",
+                own_rows.len(),
                 100.0 * rel_alt,
                 if adopt {
                     format!(
@@ -922,7 +988,7 @@ pub fn choose_models(
                     100.0 * MIN_OWN_GAIN
                 )
             });
-            let stop = if stopped {
+            let stop = if stopped == Some(Stop::CannotPass) {
                 format!(" (stopped there, of {n_full} drawn: on all of them it could not pass)")
             } else {
                 String::new()
@@ -1011,6 +1077,17 @@ mod tests {
         assert!(!cannot_pass(-0.5, 0.3, 256, 2048, 0.0));
         // …while a mean of −0.7 at that noise (upper 0.2) cannot reach it.
         assert!(cannot_pass(-0.7, 0.3, 256, 2048, 0.0));
+    }
+
+    #[test]
+    fn a_clear_pass_waits_for_every_stratum_to_be_seen() {
+        // A lamp's 40 own pixels at the first look of 2048: 5 of them, too few for their spread.
+        assert!(!strata_known(&[(5, 40), (251, 2008)]));
+        // 16 of them will do, and so will all of a stratum of 3.
+        assert!(strata_known(&[(16, 128), (240, 1920)]));
+        assert!(strata_known(&[(3, 3), (253, 2045)]));
+        // An empty stratum is all of itself.
+        assert!(strata_known(&[(0, 0), (256, 2048)]));
     }
 
     #[test]
