@@ -58,7 +58,15 @@ pub struct ProfilePoint {
     pub loss: f64,
     pub base_color: [f64; 3],
     pub specular: f64,
+    /// Where `specular` is at its bound ([`SPECULAR_BOUND`]): the profile loss with the specular strength at
+    /// most [`HALF_SPECULAR`] instead, from the same render and Jacobian (what the last doubling of a
+    /// dielectric's reflection buys); `None` below the bound.
+    pub loss_half_specular: Option<f64>,
 }
+
+/// The cap on the specular strength of the comparison solve behind [`ProfilePoint::loss_half_specular`]: half
+/// the dielectric's range (F0 ≤ 0.04 instead of 0.08).
+pub const HALF_SPECULAR: f64 = 0.5;
 
 /// Evaluates the profile loss of object `k` at roughness `r`, linearising around the base colour and
 /// specular of `x` (other objects as in `x`). `samples` are pixels whose centre sees object k.
@@ -108,14 +116,23 @@ pub fn profile(
         hi: &[1.0; 4],
     };
     linear::solve(&problem, DataLoss::L1, &mut v, IRLS_ITERS);
-    let loss = (0..3 * m).map(|i| (target[i] - (0..4).map(|u| cols[u][i] * v[u]).sum::<f64>()).abs()).sum::<f64>()
-        / (3 * m.max(1)) as f64;
+    let loss_of = |v: &[f64]| {
+        (0..3 * m).map(|i| (target[i] - (0..4).map(|u| cols[u][i] * v[u]).sum::<f64>()).abs()).sum::<f64>()
+            / (3 * m.max(1)) as f64
+    };
+    let loss_half_specular = (v[3] >= SPECULAR_BOUND).then(|| {
+        let mut half = v0.to_vec();
+        half[3] = half[3].min(HALF_SPECULAR);
+        linear::solve(&Problem { hi: &[1.0, 1.0, 1.0, HALF_SPECULAR], ..problem }, DataLoss::L1, &mut half, IRLS_ITERS);
+        loss_of(&half)
+    });
     Ok(ProfilePoint {
         roughness: r,
         metallic: x[idx(k, METALLIC)],
-        loss,
+        loss: loss_of(&v),
         base_color: [v[0], v[1], v[2]],
         specular: v[3],
+        loss_half_specular,
     })
 }
 
@@ -135,8 +152,7 @@ pub fn search(
         evals.push(p);
         Ok(p)
     };
-    let mean_target = samples.iter().map(|t| f64::from(t.target.abs().element_sum()) / 3.0).sum::<f64>()
-        / samples.len().max(1) as f64;
+    let mean_target = mean_target(samples);
     // The coarse points first; the others only where the profile is not flat over them.
     let mut grid: Vec<Option<ProfilePoint>> = vec![None; GRID.len()];
     for &i in &COARSE {
@@ -161,6 +177,11 @@ pub fn search(
     let hi = if best + 1 == GRID.len() { 1.0 } else { GRID[best + 1] };
     golden(lo, hi, |r| eval(r, &mut evals))?;
     Ok((lowest(&evals).unwrap_or(best_point), evals))
+}
+
+/// Mean per-channel |target| of the object's pixels, which the profile's thresholds are relative to.
+fn mean_target(samples: &[Sample]) -> f64 {
+    samples.iter().map(|t| f64::from(t.target.abs().element_sum()) / 3.0).sum::<f64>() / samples.len().max(1) as f64
 }
 
 /// Whether the profile varies over the evaluated grid points by less than [`FLAT_PROFILE`] of `mean_target`.
@@ -207,8 +228,9 @@ fn golden(
 }
 
 /// The best lobe of object k over roughness and metallic: the dielectric lobe ([`search`] at metallic 0), and
-/// only when its specular strength is at its bound — the photos ask for a stronger reflection than a
-/// dielectric's F0 ≤ 0.08 gives — the metal family too: [`search`] at metallic 1, then a golden-section
+/// only when its specular strength is at its bound and the bound binds — the photos ask for a stronger
+/// reflection than a dielectric's F0 ≤ 0.08 gives, and halving it ([`ProfilePoint::loss_half_specular`])
+/// raises the profile loss by at least [`FLAT_PROFILE`] of the pixels' mean — the metal family too: [`search`] at metallic 1, then a golden-section
 /// search on metallic in [0, 1] at the better family's roughness, and, when the best metallic lies strictly
 /// between the two, [`search`] once more at it. A principled BSDF between the two families (Modern Hall's
 /// tiled floor at metallic 0.75) is fitted by neither end: its dielectric fit put the tiles' colour 0.1 too
@@ -228,7 +250,13 @@ pub fn search_lobe(
         xm
     };
     let (dielectric, mut evals) = search(ctx, &at(0.0), k, samples, spp, key)?;
-    if dielectric.specular < SPECULAR_BOUND {
+    // The dielectric falls short only if its bound binds: halving its reflection must cost the profile what
+    // roughness needs to matter ([`FLAT_PROFILE`]). Where a rough lobe and the base colour explain the pixels
+    // alike, the L1 solve can end on the bound of that flat valley (a diffuse wall of the corpus house), and
+    // the bound says nothing about the photos.
+    let binds =
+        dielectric.loss_half_specular.is_some_and(|half| half - dielectric.loss >= FLAT_PROFILE * mean_target(samples));
+    if !binds {
         return Ok((dielectric, evals));
     }
     let (metal, metal_evals) = search(ctx, &at(1.0), k, samples, spp, key)?;
