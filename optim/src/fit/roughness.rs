@@ -230,9 +230,9 @@ fn golden(
 /// The best lobe of object k over roughness and metallic: the dielectric lobe ([`search`] at metallic 0), and
 /// only when its specular strength is at its bound and the bound binds — the photos ask for a stronger
 /// reflection than a dielectric's F0 ≤ 0.08 gives, and halving it ([`ProfilePoint::loss_half_specular`])
-/// raises the profile loss by at least [`FLAT_PROFILE`] of the pixels' mean — the metal family too: [`search`] at metallic 1, then a golden-section
-/// search on metallic in [0, 1] at the better family's roughness, and, when the best metallic lies strictly
-/// between the two, [`search`] once more at it. A principled BSDF between the two families (Modern Hall's
+/// raises the profile loss by at least [`FLAT_PROFILE`] of the pixels' mean — the metal family too:
+/// [`search`] at metallic 1, then a golden-section search on metallic in [0, 1] at the better family's
+/// roughness, and, when the best metallic lies strictly between the two, [`search`] once more at it. A principled BSDF between the two families (Modern Hall's
 /// tiled floor at metallic 0.75) is fitted by neither end: its dielectric fit put the tiles' colour 0.1 too
 /// dark (docs/optim/design-measurements.md, "Metals between dielectric and conductor"). All evaluations share
 /// `key` (common random numbers), so the families are compared on the same paths.

@@ -341,6 +341,16 @@ enum Stop {
     ClearlyPasses,
 }
 
+impl Stop {
+    /// What the `why` of a stopped test says about the pixels it did not look at.
+    fn reason(self) -> &'static str {
+        match self {
+            Stop::CannotPass => "on all of them it could not pass",
+            Stop::ClearlyPasses => "on all of them it would pass",
+        }
+    }
+}
+
 /// Drawn pixels of a stratum (the emitter's own pixels, or the others it lights) before the emission test may
 /// stop on a clear pass, unless all of the stratum's pixels are in: the standard error of a stratum's mean
 /// from fewer is itself too uncertain to rule out chance (with 16 values, the sample standard deviation is
@@ -581,8 +591,7 @@ pub fn choose_models(
         let mut i_t = vec![glam::Vec3::ZERO; lobe_test.len()];
         let mut open: Vec<usize> = (0..k_count).filter(|&k| free[k] && !rows_of[k].is_empty()).collect();
         let mut looked = vec![0usize; k_count];
-        let mut stopped = vec![false; k_count];
-        let mut passed = vec![false; k_count];
+        let mut stopped: Vec<Option<Stop>> = vec![None; k_count];
         let mut n_look = FIRST_LOOK;
         let mut rendered = 0usize;
         let mut look = 1;
@@ -617,11 +626,11 @@ pub fn choose_models(
                 let d = lobe_differences(&lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
                 let (mean, se) = linear::mean_se(&d);
                 if cannot_pass(mean, se, d.len(), rows_of[k].len(), MIN_GAIN * mean_target) {
-                    stopped[k] = true;
+                    stopped[k] = Some(Stop::CannotPass);
                     return false;
                 }
                 if clearly_passes(mean, se, d.len(), rows_of[k].len(), MIN_GAIN * mean_target) {
-                    passed[k] = true;
+                    stopped[k] = Some(Stop::ClearlyPasses);
                     return false;
                 }
                 true
@@ -634,18 +643,13 @@ pub fn choose_models(
             let d = lobe_differences(&lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
             let (gain, t) = paired_t(&d);
             let rel = gain / mean_target.max(f64::MIN_POSITIVE);
-            let on = if stopped[k] {
-                format!(
-                    "{} of its {} pixels (stopped there: on all of them it could not pass)",
-                    d.len(),
-                    rows_of[k].len()
-                )
-            } else if passed[k] {
-                format!("{} of its {} pixels (stopped there: on all of them it would pass)", d.len(), rows_of[k].len())
-            } else {
-                format!("{} pixels", d.len())
+            let on = match stopped[k] {
+                Some(stop) => {
+                    format!("{} of its {} pixels (stopped there: {})", d.len(), rows_of[k].len(), stop.reason())
+                }
+                None => format!("{} pixels", d.len()),
             };
-            if !stopped[k] && t > T_KEEP && rel > MIN_GAIN {
+            if stopped[k] != Some(Stop::CannotPass) && t > T_KEEP && rel > MIN_GAIN {
                 glossy[k] = true;
                 for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
                     x[idx(k, p)] = xt[idx(k, p)];
@@ -776,13 +780,12 @@ pub fn choose_models(
         // exactly the renders of a single look (every estimate is keyed by the pixel).
         // Per test pixel: the two arms and k's base-colour column.
         let mut cache: std::collections::HashMap<usize, ArmsAt> = std::collections::HashMap::new();
-        let mut look_size = FIRST_LOOK.min(n_full);
-        let EmissionLook { on, mean_lit, delta, gain, t, stopped } = loop {
-            let part = |n: usize| if look_size >= n_full { n } else { (n * look_size).div_ceil(n_full) };
-            let (a, b) = (part(n_own), part(n_other));
-            let mut on: Vec<usize> = own[..a].iter().chain(&other[..b]).copied().collect();
-            on.sort_unstable();
-            let new: Vec<usize> = on.iter().copied().filter(|j| !cache.contains_key(j)).collect();
+        // Renders the arms (and, for a free base colour, the column) of the test rows `rows` not yet in `cache`.
+        let fill = |cache: &mut std::collections::HashMap<usize, ArmsAt>, rows: &[usize]| -> Result<(), FitError> {
+            let new: Vec<usize> = rows.iter().copied().filter(|j| !cache.contains_key(j)).collect();
+            if new.is_empty() {
+                return Ok(());
+            }
             let new_px: Vec<PixelRef> = new.iter().map(|&j| pix[j]).collect();
             let new_pred = arm_on(&params, &new_px)?;
             let new_without = arm_on(&no_k, &new_px)?;
@@ -791,6 +794,15 @@ pub fn choose_models(
             for (i, &j) in new.iter().enumerate() {
                 cache.insert(j, ArmsAt { pred: new_pred[i], without: new_without[i], column: new_col[i] });
             }
+            Ok(())
+        };
+        let mut look_size = FIRST_LOOK.min(n_full);
+        let EmissionLook { on, mean_lit, delta, gain, t, stopped } = loop {
+            let part = |n: usize| if look_size >= n_full { n } else { (n * look_size).div_ceil(n_full) };
+            let (a, b) = (part(n_own), part(n_other));
+            let mut on: Vec<usize> = own[..a].iter().chain(&other[..b]).copied().collect();
+            on.sort_unstable();
+            fill(&mut cache, &on)?;
             let (w_own, w_other) = (share(n_lit_own, a), share(n_lit_other, b));
             let tgt: Vec<[f64; 3]> = on.iter().map(|&j| target(&test[j])).collect();
             let is_own: Vec<bool> = on.iter().map(|&j| test[j].object == Some(k as u32)).collect();
@@ -814,19 +826,18 @@ pub fn choose_models(
             let mean_lit = tgt.iter().zip(&row_w).map(|(t, w)| w * l1(*t, [0.0; 3])).sum::<f64>();
             let full = on.len() == n_full;
             let min_gain = MIN_GAIN * 1e-2 * mean_lit;
-            let stop = !full && cannot_pass(gain, se, on.len(), n_full, min_gain);
-            let pass = !full
-                && strata_known(&[(a, n_own), (b, n_other)])
-                && clearly_passes(gain, se, on.len(), n_full, min_gain);
-            if full || stop || pass {
+            let stopped = if full {
+                None
+            } else if cannot_pass(gain, se, on.len(), n_full, min_gain) {
+                Some(Stop::CannotPass)
+            } else if strata_known(&[(a, n_own), (b, n_other)]) && clearly_passes(gain, se, on.len(), n_full, min_gain)
+            {
+                Some(Stop::ClearlyPasses)
+            } else {
+                None
+            };
+            if full || stopped.is_some() {
                 let t = linear::t_statistic(gain, se);
-                let stopped = if stop {
-                    Some(Stop::CannotPass)
-                } else if pass {
-                    Some(Stop::ClearlyPasses)
-                } else {
-                    None
-                };
                 break EmissionLook { on, mean_lit, delta, gain, t, stopped };
             }
             look_size *= 2;
@@ -847,16 +858,7 @@ pub fn choose_models(
         let mut own_rows: Vec<usize> = own.clone();
         own_rows.sort_unstable();
         if beats(t, rel) && free[k] && own_rows.len() >= 2 {
-            let missing: Vec<usize> = own_rows.iter().copied().filter(|j| !cache.contains_key(j)).collect();
-            if !missing.is_empty() {
-                let missing_px: Vec<PixelRef> = missing.iter().map(|&j| pix[j]).collect();
-                let m_pred = arm_on(&params, &missing_px)?;
-                let m_without = arm_on(&no_k, &missing_px)?;
-                let m_col = base_color_column(ctx, s, &params, k, &missing_px)?;
-                for (i, &j) in missing.iter().enumerate() {
-                    cache.insert(j, ArmsAt { pred: m_pred[i], without: m_without[i], column: m_col[i] });
-                }
-            }
+            fill(&mut cache, &own_rows)?;
             let x_alt = best_lobe_without_emission(ctx, s, &profile_samples(ctx, sets, k), &x, k)?;
             let own_px: Vec<PixelRef> = own_rows.iter().map(|&j| pix[j]).collect();
             let own_tgt: Vec<[f64; 3]> = own_rows.iter().map(|&j| target(&test[j])).collect();
@@ -918,8 +920,8 @@ pub fn choose_models(
                     own_rows.len()
                 )
             });
-            let stop = if stopped == Some(Stop::ClearlyPasses) {
-                format!(" (stopped there, of {n_full} drawn: on all of them it would pass)")
+            let stop = if let Some(stop @ Stop::ClearlyPasses) = stopped {
+                format!(" (stopped there, of {n_full} drawn: {})", stop.reason())
             } else {
                 String::new()
             };
@@ -988,8 +990,8 @@ pub fn choose_models(
                     100.0 * MIN_OWN_GAIN
                 )
             });
-            let stop = if stopped == Some(Stop::CannotPass) {
-                format!(" (stopped there, of {n_full} drawn: on all of them it could not pass)")
+            let stop = if let Some(stop @ Stop::CannotPass) = stopped {
+                format!(" (stopped there, of {n_full} drawn: {})", stop.reason())
             } else {
                 String::new()
             };
