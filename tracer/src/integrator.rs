@@ -20,7 +20,7 @@
 
 use crate::bsdf::{BsdfSample, Material, MaterialAt, MaterialGrad};
 use crate::embree::RayHit;
-use crate::lights::{LightSample, LightSampler};
+use crate::lights::{LightPick, LightSample, LightSampler};
 use crate::numerics::{Frame, offset_ray_origin, power_heuristic};
 use crate::params::{EmissionProfile, Grads, MaterialGradSum, Params, TracerSettings};
 use crate::rng::PathSampler;
@@ -385,6 +385,8 @@ pub(crate) struct ColumnScratch {
     /// The last path's estimate per column.
     pub out: Vec<Vec3>,
     shadows: Vec<Option<PendingShadow>>,
+    /// Each column's light triangle at the current vertex, picked before any is connected.
+    picks: Vec<Option<LightPick>>,
 }
 
 /// One path's estimate for every column of `cols` at once: entry i of `scratch.out` is exactly
@@ -408,7 +410,7 @@ pub(crate) fn trace_columns(
     let Context { scene, params, settings, .. } = *ctx;
     let profile = settings.emission_profile;
     let n = cols.slots.len();
-    let ColumnScratch { out, shadows } = scratch;
+    let ColumnScratch { out, shadows, picks } = scratch;
     out.clear();
     out.resize(n, Vec3::ZERO);
     shadows.clear();
@@ -449,12 +451,24 @@ pub(crate) fn trace_columns(
         let material: &Material = &params.materials[material_idx as usize];
         let bsdf = material.at(wo_l);
 
-        // Each column's next-event connection, up to its shadow ray.
+        // Each column's next-event connection, up to its shadow ray. Every column's light triangle is picked
+        // first and its record prefetched, then the points are drawn and connected: with hundreds of columns
+        // the records are scattered over the scene's memory, and read one after another each waited for its
+        // own cache miss (most of a house's basis render, docs/scale/README.md).
+        let (u_slot, u_tri) = (rng.get(dim), rng.get(dim + 1));
         let u_point = Vec2::new(rng.get(dim + 2), rng.get(dim + 3));
-        for (shadow, sampler) in shadows.iter_mut().zip(&cols.samplers) {
-            let light =
-                if sampler.is_empty() { None } else { sampler.sample(scene, rng.get(dim), rng.get(dim + 1), u_point) };
-            *shadow = light.and_then(|ls| connect::<false>(scene, profile, &bsdf, &frame, sp.p, ng, ls, |_| Vec3::ONE));
+        picks.clear();
+        picks.extend(cols.samplers.iter().map(|sampler| {
+            let pick = sampler.pick(scene, u_slot, u_tri);
+            if let Some(pick) = pick {
+                scene.prefetch_triangle(pick.tri);
+            }
+            pick
+        }));
+        for (shadow, pick) in shadows.iter_mut().zip(picks.iter()) {
+            *shadow = pick.and_then(|pick| {
+                connect::<false>(scene, profile, &bsdf, &frame, sp.p, ng, pick.point(scene, u_point), |_| Vec3::ONE)
+            });
         }
         let finish =
             |shadows: &mut [Option<PendingShadow>], out: &mut [Vec3], vertex: &mut Vertex, rays: &mut [u64; 2]| {

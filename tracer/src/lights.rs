@@ -89,6 +89,16 @@ impl LightSampler {
     #[inline]
     #[must_use]
     pub fn sample(&self, scene: &Scene, u_slot: f32, u_tri: f32, u_point: Vec2) -> Option<LightSample> {
+        self.pick(scene, u_slot, u_tri).map(|pick| pick.point(scene, u_point))
+    }
+
+    /// The first half of [`LightSampler::sample`]: the triangle, chosen from the sampler's and the scene's
+    /// distributions without reading the triangle's own record. A caller drawing many samples at a vertex (one
+    /// per emission column) picks them all first and prefetches their records ([`Scene::prefetch_triangle`]),
+    /// so that the records' cache misses overlap instead of following one another.
+    #[inline]
+    #[must_use]
+    pub fn pick(&self, scene: &Scene, u_slot: f32, u_tri: f32) -> Option<LightPick> {
         if self.slots.is_empty() {
             return None;
         }
@@ -96,9 +106,26 @@ impl LightSampler {
         let i = self.cdf.partition_point(|&c| c <= u).min(self.slots.len() - 1);
         let slot = self.slots[i];
         let tri = scene.sample_emitter_triangle(slot, f64::from(u_tri))?;
+        Some(LightPick { tri, pdf_area: self.prob_per_area[slot as usize] as f32 })
+    }
+}
+
+/// A triangle picked by [`LightSampler::pick`], before its point is drawn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightPick {
+    pub tri: u32,
+    /// Probability density per unit area of the points drawn on it.
+    pub pdf_area: f32,
+}
+
+impl LightPick {
+    /// The uniform point on the triangle drawn with `u_point`: the second half of [`LightSampler::sample`].
+    #[inline]
+    #[must_use]
+    pub fn point(self, scene: &Scene, u_point: Vec2) -> LightSample {
         // Uniform barycentrics by the square-root warp (pbrt-v4 SampleUniformTriangle's classic variant).
         let r = u_point.x.sqrt();
         let (b1, b2) = (1.0 - r, u_point.y * r);
-        Some(LightSample { tri, p: scene.position(tri, b1, b2), pdf_area: self.prob_per_area[slot as usize] as f32 })
+        LightSample { tri: self.tri, p: scene.position(self.tri, b1, b2), pdf_area: self.pdf_area }
     }
 }

@@ -20,6 +20,7 @@ use super::jacobian::{self, Ctx};
 use super::layout::{self, BASE_COLOR, EMISSION, EMISSION_MAX, idx};
 use super::linear::{self, DataLoss, Problem};
 use super::pixels::WeightedDraw;
+use rayon::prelude::*;
 use tracer::{PixelRef, TracerError};
 
 use crate::streams::key::SECOND_ESTIMATE;
@@ -188,65 +189,78 @@ pub fn solve_on_columns(
     let weights: Vec<f64> = if weights.len() == m { weights.to_vec() } else { vec![1.0; m] };
     // Weighted mean over the rows: with the draw's weights, an unbiased estimate of the mean over all pixels.
     let wmean = |v: &mut dyn Iterator<Item = f64>| v.zip(&weights).map(|(a, w)| a * w).sum::<f64>() / m.max(1) as f64;
-    let mut loss = 0.0;
-    for c in 0..3 {
-        let chan = |cols: &[Vec<[f64; 3]>], n: usize| -> Vec<Vec<f64>> {
-            (0..n).map(|k| cols[k].iter().map(|v| v[c]).collect()).collect()
-        };
-        let mut cols = chan(emission_cols.a, ne);
-        let mut cols2 = chan(emission_cols.b, ne);
-        let mut target: Vec<f64> = targets.iter().map(|t| f64::from(t[c])).collect();
-        let mut target2 = target.clone();
-        let n = ne + nm;
-        let mut penalty = vec![0.0; n];
-        let mut prox = vec![0.0; n];
-        let mut anchor = vec![0.0; n];
-        let lo = vec![0.0; n];
-        let mut hi = vec![EMISSION_MAX; n];
-        let mut var = vec![0.0; n];
-        for k in 0..ne {
-            let s = wmean(&mut cols[k].iter().zip(&cols2[k]).map(|(a, b)| 0.5 * (a + b).abs()));
-            penalty[k] = opts.emission_l1 * s;
-            var[k] = emission[k][c];
-        }
-        // Mean |residual| of the current parameters (I_j = Σ_k J_jk e_k exactly), before the update.
-        for (j, t) in target.iter().enumerate() {
-            let pred: f64 = (0..ne).map(|k| 0.5 * (cols[k][j] + cols2[k][j]) * var[k]).sum();
-            loss += weights[j] * (t - pred).abs() / (3 * m.max(1)) as f64;
-        }
-        for k in (0..ne).filter(|&k| emission_pinned.get(k).copied().unwrap_or(false)) {
-            hi[k] = 0.0;
-            var[k] = 0.0;
-        }
-        for (i, (ca, cb)) in chan(material_cols.a, nm).into_iter().zip(chan(material_cols.b, nm)).enumerate() {
-            let v = ne + i;
-            let x0 = material[i][c];
-            // Linearisation about x0: I ≈ J_e·e + J_x·(x − x0)  ⇒  target t + J_x·x0 for the variables (e, x).
-            for j in 0..m {
-                target[j] += ca[j] * x0;
-                target2[j] += cb[j] * x0;
+    // The three channels are independent problems, solved side by side; each returns its rows' terms of the
+    // loss, which are summed afterwards in the order of a sequential pass (channel by channel, row by row).
+    let solved: Vec<(Vec<f64>, Vec<f64>)> = (0..3usize)
+        .into_par_iter()
+        .map(|c| {
+            let chan = |cols: &[Vec<[f64; 3]>], n: usize| -> Vec<Vec<f64>> {
+                (0..n).map(|k| cols[k].iter().map(|v| v[c]).collect()).collect()
+            };
+            let mut cols = chan(emission_cols.a, ne);
+            let mut cols2 = chan(emission_cols.b, ne);
+            let mut target: Vec<f64> = targets.iter().map(|t| f64::from(t[c])).collect();
+            let mut target2 = target.clone();
+            let n = ne + nm;
+            let mut penalty = vec![0.0; n];
+            let mut prox = vec![0.0; n];
+            let mut anchor = vec![0.0; n];
+            let lo = vec![0.0; n];
+            let mut hi = vec![EMISSION_MAX; n];
+            let mut var = vec![0.0; n];
+            for k in 0..ne {
+                let s = wmean(&mut cols[k].iter().zip(&cols2[k]).map(|(a, b)| 0.5 * (a + b).abs()));
+                penalty[k] = opts.emission_l1 * s;
+                var[k] = emission[k][c];
             }
-            let diag = wmean(&mut ca.iter().zip(&cb).map(|(a, b)| (a * b).abs()));
-            prox[v] = opts.damping * diag;
-            anchor[v] = x0;
-            hi[v] = material_hi[i][c];
-            var[v] = x0;
-            cols.push(ca);
-            cols2.push(cb);
-        }
-        let problem = Problem {
-            cols: &cols,
-            target: &target,
-            second: Some((&cols2, &target2)),
-            weights: Some(&weights),
-            groups: (groups.len() == m).then_some(groups),
-            penalty: &penalty,
-            prox: &prox,
-            anchor: &anchor,
-            lo: &lo,
-            hi: &hi,
-        };
-        solve_relaxed_lasso(problem, ne, opts, &mut var);
+            // Mean |residual| of the current parameters (I_j = Σ_k J_jk e_k exactly), before the update.
+            let loss_terms: Vec<f64> = target
+                .iter()
+                .enumerate()
+                .map(|(j, t)| {
+                    let pred: f64 = (0..ne).map(|k| 0.5 * (cols[k][j] + cols2[k][j]) * var[k]).sum();
+                    weights[j] * (t - pred).abs() / (3 * m.max(1)) as f64
+                })
+                .collect();
+            for k in (0..ne).filter(|&k| emission_pinned.get(k).copied().unwrap_or(false)) {
+                hi[k] = 0.0;
+                var[k] = 0.0;
+            }
+            for (i, (ca, cb)) in chan(material_cols.a, nm).into_iter().zip(chan(material_cols.b, nm)).enumerate() {
+                let v = ne + i;
+                let x0 = material[i][c];
+                // Linearisation about x0: I ≈ J_e·e + J_x·(x − x0)  ⇒  target t + J_x·x0 for the variables (e, x).
+                for j in 0..m {
+                    target[j] += ca[j] * x0;
+                    target2[j] += cb[j] * x0;
+                }
+                let diag = wmean(&mut ca.iter().zip(&cb).map(|(a, b)| (a * b).abs()));
+                prox[v] = opts.damping * diag;
+                anchor[v] = x0;
+                hi[v] = material_hi[i][c];
+                var[v] = x0;
+                cols.push(ca);
+                cols2.push(cb);
+            }
+            let problem = Problem {
+                cols: &cols,
+                target: &target,
+                second: Some((&cols2, &target2)),
+                weights: Some(&weights),
+                groups: (groups.len() == m).then_some(groups),
+                penalty: &penalty,
+                prox: &prox,
+                anchor: &anchor,
+                lo: &lo,
+                hi: &hi,
+            };
+            solve_relaxed_lasso(problem, ne, opts, &mut var);
+            (loss_terms, var)
+        })
+        .collect();
+    let mut loss = 0.0;
+    for (c, (loss_terms, var)) in solved.into_iter().enumerate() {
+        loss_terms.iter().for_each(|t| loss += t);
         for (e, v) in emission.iter_mut().zip(&var[..ne]) {
             e[c] = *v;
         }
