@@ -11,6 +11,7 @@
 //! - [`progress`] — how progress and decisions leave the optimiser: the crate prints nothing; callers render
 //!   [`Progress`] calls and `tracing` events as they like.
 
+pub mod blocks;
 pub mod fit;
 pub mod photometric;
 pub mod progress;

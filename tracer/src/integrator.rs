@@ -454,7 +454,8 @@ pub(crate) fn trace_columns(
         // Each column's next-event connection, up to its shadow ray. Every column's light triangle is picked
         // first and its record prefetched, then the points are drawn and connected: with hundreds of columns
         // the records are scattered over the scene's memory, and read one after another each waited for its
-        // own cache miss (most of a house's basis render, docs/scale/README.md).
+        // own cache miss (most of a house's basis render: docs/optim/design-measurements.md, "Basis renders
+        // that wait on memory, and solves on one core").
         let (u_slot, u_tri) = (rng.get(dim), rng.get(dim + 1));
         let u_point = Vec2::new(rng.get(dim + 2), rng.get(dim + 3));
         picks.clear();

@@ -16,6 +16,7 @@ use super::roughness;
 use super::solve::{self, solve_options, solve_samples};
 use super::step_check;
 use super::{FitError, ObjectFitSettings, ObjectModel};
+use crate::blocks::RENDER_BLOCK;
 use crate::streams::{self, draw, key};
 use tracer::PixelRef;
 
@@ -147,13 +148,8 @@ fn lobe_differences(test: &[Sample], rows: &[usize], i_d: &[glam::Vec3], i_t: &[
         .collect()
 }
 
-/// Pixels per block of [`paired_renders`]: small enough that a house's lobe test (~3·10⁵ pixels at
-/// `holdout_spp`, minutes per render) reports its progress every few seconds, large enough that each block
-/// keeps both cores busy.
-const RENDER_BLOCK: usize = 8192;
-
 /// Two renders of the same pixels with the same random numbers (`key`), in blocks of [`RENDER_BLOCK`]
-/// pixels, one progress step per block and arm in a phase `phase`. Random numbers are keyed by the pixel, so
+/// pixels (a house's lobe test renders ~3·10⁵ pixels at `holdout_spp`, minutes per render), one progress step per block and arm in a phase `phase`. Random numbers are keyed by the pixel, so
 /// the blocks give exactly the values of one render of all the pixels.
 fn paired_renders(
     ctx: &Ctx<'_>,

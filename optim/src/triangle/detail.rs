@@ -192,13 +192,20 @@ pub fn estimate(
     progress.set_message("collecting the pixels of the detailed triangles");
     let pix = pixels::collect_budgets(scene, cameras, images, &budgets, settings.seed);
     let refs: Vec<PixelRef> = pix.samples.iter().map(|s| s.pixel).collect();
-    progress.set_message(&format!("rendering the shading at {} pixels", refs.len()));
     let renders = if refs.is_empty() {
         Vec::new()
     } else {
-        tracer::Renderer::new(scene, &state.params(), tracer_settings)?
-            .render_pixels(cameras, &refs, settings.spp, settings.seed, key::TRIANGLE_DETAIL)?
-            .0
+        crate::blocks::render_blocks(
+            &tracer::Renderer::new(scene, &state.params(), tracer_settings)?,
+            cameras,
+            &refs,
+            settings.spp,
+            settings.seed,
+            key::TRIANGLE_DETAIL,
+            progress,
+            &format!("rendering the shading at {} pixels, block", refs.len()),
+        )?
+        .0
     };
     // Samples grouped by triangle (counting sort; each group keeps the samples' order).
     let mut start = vec![0usize; nt + 1];
@@ -214,7 +221,7 @@ pub fn estimate(
         order[fill[s.tri as usize]] = k;
         fill[s.tri as usize] += 1;
     }
-    progress.set_message("dividing the photos by the shading");
+    progress.phase("dividing the photos by the shading", 1, 0);
     let tested: Vec<Option<(TexelGrid, f64)>> = (0..nt)
         .into_par_iter()
         .map(|t| {

@@ -261,10 +261,11 @@ pub fn refine_light(
         let (mut sum_s, mut n) = (vec![DVec3::ZERO; objects], 0.0);
         // Per averaged step, the emitters' emission (in `emitters` order).
         let mut averaged: Vec<Vec<DVec3>> = Vec::new();
+        progress.phase(&format!("round {round}: light cycle {}, step", cycle + 1), LIGHT_STEPS as u64, 0);
         for i in 0..LIGHT_STEPS {
             let pass = cycle * LIGHT_STEPS + i + 1;
-            progress.set_message(&format!("round {round}: light step {}/{LIGHT_STEPS} of cycle {}", i + 1, cycle + 1));
             let scale = solve_light(inputs, scene, samples, state, &emitters, &free, round, pass, &mut work)?;
+            progress.set_position(i as u64 + 1);
             for (c, s) in cumulative.iter_mut().zip(&scale) {
                 *c *= *s;
             }

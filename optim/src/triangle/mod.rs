@@ -354,8 +354,10 @@ pub fn run_rounds(
         )));
     }
     let cfg = inputs.settings;
-    progress.phase("round", u64::from(cfg.rounds) + 1, u64::from(state.rounds_done));
     while state.rounds_done <= cfg.rounds {
+        // The rounds' phase, again at every round: a round's ratio and light steps report as phases of their
+        // own (each with its ETA), which replace it while they run.
+        progress.phase("round", u64::from(cfg.rounds) + 1, u64::from(state.rounds_done));
         let round = state.rounds_done;
         let started = std::time::Instant::now();
         let scene = state.scene()?;
@@ -372,6 +374,7 @@ pub fn run_rounds(
             seconds: 0.0,
             emission: state.emission.clone(),
         };
+        progress.phase("round", u64::from(cfg.rounds) + 1, u64::from(state.rounds_done));
         progress.set_message(&format!("{} triangles, loss {:.4}", rec.triangles, fitted.loss.last().unwrap_or(&0.0)));
         let last = round == cfg.rounds;
         let mut stop = last;
@@ -426,11 +429,11 @@ pub fn run_rounds(
         if stop {
             // Nothing changed the mesh after this fit: it is the final result.
             state.rounds_done = cfg.rounds + 1;
-            progress.set_position(u64::from(state.rounds_done));
+            progress.phase("round", u64::from(cfg.rounds) + 1, u64::from(state.rounds_done));
             return Ok(state);
         }
         state.rounds_done += 1;
-        progress.set_position(u64::from(state.rounds_done));
+        progress.phase("round", u64::from(cfg.rounds) + 1, u64::from(state.rounds_done));
         on_round(&state)?;
         if progress.stop_requested() {
             return Err(TriangleError::Interrupted { rounds_done: state.rounds_done });

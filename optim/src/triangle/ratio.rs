@@ -357,20 +357,21 @@ pub fn fit_pass(
     let mut relax = vec![DVec3::ONE; objects];
     let mut last_step = vec![DVec3::ZERO; objects];
     for k in pass * steps..(pass + 1) * steps {
-        progress.set_message(&format!(
-            "round {round}: ratio step {}/{steps} of pass {pass}, {} triangles, {} pixels at {} paths",
-            k - pass * steps + 1,
-            n,
-            pix.len(),
-            cfg.spp
-        ));
         let params = state.params();
-        let (values, stats) = tracer::Renderer::new(scene, &params, inputs.tracer)?.render_pixels(
+        let (values, stats) = crate::blocks::render_blocks(
+            &tracer::Renderer::new(scene, &params, inputs.tracer)?,
             inputs.cameras,
             &pix,
             cfg.spp,
             cfg.seed,
             key::triangle(round, k),
+            progress,
+            &format!(
+                "round {round}: ratio step {}/{steps} of pass {pass} ({n} triangles, {} pixels at {} paths), block",
+                k - pass * steps + 1,
+                pix.len(),
+                cfg.spp
+            ),
         )?;
         work.add(&stats);
         let mut t_sum = vec![DVec3::ZERO; n];

@@ -14,7 +14,7 @@ mod plot;
 mod summary;
 mod table;
 
-pub use table::{CSV_COLUMNS, Row, TriangleColumns, pareto_error};
+pub use table::{CSV_COLUMNS, Row, TriangleColumns, pareto_error, pareto_point};
 
 use super::metrics;
 use super::scenes::{self, BenchScene};
@@ -283,7 +283,7 @@ pub fn run(opts: &TradeoffOptions) -> Result<Vec<Row>, BenchError> {
             let (r, m): (Vec<Row>, Vec<String>) = rows.iter().cloned().unzip();
             super::write_file(&opts.out.join("tradeoff.csv"), table::csv(&r, &m).as_bytes())?;
         }
-        let pts: Vec<(f64, f64)> = rows[first..].iter().map(|(r, _)| (r.seconds, pareto_error(r))).collect();
+        let pts: Vec<(f64, f64)> = rows[first..].iter().map(|(r, _)| pareto_point(r)).collect();
         for i in svg::pareto_front(&pts) {
             rows[first + i].0.pareto = true;
         }
@@ -309,7 +309,7 @@ pub fn replot(opts: &TradeoffOptions) -> Result<Vec<Row>, BenchError> {
     let (mut rows, models) = table::parse(&text).map_err(bad)?;
     for scene in scene_names(&rows) {
         let idx: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].scene == scene).collect();
-        let pts: Vec<(f64, f64)> = idx.iter().map(|&i| (rows[i].seconds, pareto_error(&rows[i]))).collect();
+        let pts: Vec<(f64, f64)> = idx.iter().map(|&i| pareto_point(&rows[i])).collect();
         for k in svg::pareto_front(&pts) {
             rows[idx[k]].pareto = true;
         }

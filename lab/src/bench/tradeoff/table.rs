@@ -55,6 +55,16 @@ pub fn pareto_error(r: &Row) -> f64 {
     r.triangle.map_or(r.accuracy.albedo_l1, |t| t.texture_l1)
 }
 
+/// A row's point for its scene's Pareto front: wall time and [`pareto_error`] as [`csv`] writes them (3 and 6
+/// decimals). A sweep and a `--replot` of its CSV then mark the same front: on the exact values two points
+/// that tie in the CSV (0.1812 s and 0.1808 s, both written 0.181) can dominate each other, and on the
+/// parsed ones not.
+#[must_use]
+pub fn pareto_point(r: &Row) -> (f64, f64) {
+    let written = |v: f64, decimals: usize| format!("{v:.decimals$}").parse().unwrap_or(v);
+    (written(r.seconds, 3), written(pareto_error(r), 6))
+}
+
 /// The CSV columns, in order.
 pub const CSV_COLUMNS: [&str; 31] = [
     "scene",
@@ -209,4 +219,24 @@ pub fn parse(text: &str) -> Result<(Vec<Row>, Vec<String>), String> {
         models.push(cell("models").to_owned());
     }
     Ok((rows, models))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pareto_points_are_the_values_the_csv_holds() {
+        let header = CSV_COLUMNS.join(",");
+        let line = "demo,corner,quick,2,16,4,1,64,4,2,false,3,1,0.181,0.170,1.85,60448,462172,0.090227,0.246056,\
+                    0.000000,0.000000,0.088929,0.118621,,,,,,false,diffuse";
+        let (mut rows, _) = parse(&format!("{header}\n{line}\n{line}\n")).unwrap();
+        // Two sweep points 0.4 ms apart, written with the same 3 decimals: neither dominates the other on the
+        // written values, as in a `--replot` of the CSV.
+        rows[0].seconds = 0.1812;
+        rows[1].seconds = 0.1808;
+        rows[0].accuracy.albedo_l1 = 0.090_227_4;
+        assert_eq!(pareto_point(&rows[0]), (0.181, 0.090227));
+        assert_eq!(pareto_point(&rows[0]), pareto_point(&rows[1]));
+    }
 }
