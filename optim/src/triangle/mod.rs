@@ -433,7 +433,6 @@ pub fn run_rounds(
             return Ok(state);
         }
         state.rounds_done += 1;
-        progress.phase("round", u64::from(cfg.rounds) + 1, u64::from(state.rounds_done));
         on_round(&state)?;
         if progress.stop_requested() {
             return Err(TriangleError::Interrupted { rounds_done: state.rounds_done });
