@@ -54,12 +54,13 @@ pub mod draw {
     /// Per-object fit: which training pixels an object's pool keeps when it has more than the budget (keyed by
     /// the pixel; `crate::fit::pixels::collect`).
     pub const TRAIN_POOL: u64 = 6;
-    /// Model selection: which of the test pixels an emitter's light reaches its emission test uses, when more
-    /// than the budget (keyed by the pixel and the object).
+    /// Model selection: the order in which the emission tests draw the test pixels an emitter's light reaches
+    /// (keyed by the pixel; one order for all emitters, so that their tests share pixels).
     pub const EMISSION_TEST: u64 = 7;
     /// Model selection: the order in which the lobe test looks at an object's pixels (keyed by the pixel).
     pub const LOBE_TEST_ORDER: u64 = 8;
-    /// Per-triangle fit: the pixels of a light solve (keyed by its [`super::key::triangle`] key).
+    /// Per-triangle fit: the pixels of a light solve, per object as the object stage's solves draw them (keyed
+    /// by its [`super::key::triangle`] key and the object, `crate::fit::pixels::draw_strata_rows`).
     pub const TRIANGLE_EMISSION_PIXELS: u64 = 0x7265;
     /// Per-triangle fit: the pixels of an Adam batch (keyed by its [`super::key::triangle`] key).
     pub const TRIANGLE_BATCH: u64 = 0x7269;
@@ -99,8 +100,9 @@ pub mod key {
     /// Tone-curve exponent check after a fit ([`crate::photometric`]): its first render at `EXPONENT`, the
     /// second, independent one at `EXPONENT` XOR [`SECOND_ESTIMATE`]; every trial of the search shares them.
     pub const EXPONENT: u64 = SELECT + (7 << 20);
-    /// Model selection: object k's emission test, the renders with and without its emission at
-    /// `SELECT_EMISSION_TEST + k` (common random numbers; its base-colour column at `SELECT_PIXEL_ROWS + k`).
+    /// Model selection: the emission tests' renders, of the fitted model and of the models without an
+    /// emission or with a lobe instead (common random numbers, the same for every emitter: the model's render
+    /// at a pixel serves every test; object k's base-colour column at `SELECT_PIXEL_ROWS + k`).
     pub const SELECT_EMISSION_TEST: u64 = SELECT + (8 << 20);
     /// After model selection: the render and the two Jacobian estimates (XOR [`PROFILE_JACOBIAN`], and with
     /// [`SECOND_ESTIMATE`]) behind the standard errors of the unseen objects' base colours
@@ -108,7 +110,7 @@ pub mod key {
     pub const UNSEEN_PRIOR: u64 = SELECT + (9 << 20);
     /// Model selection: object k's lobe without emission, the alternative its emission test weighs it against
     /// (`SELECT_EMISSION_LOBE + 2k` dielectric, `+ 2k + 1` metal roughness search; the render of its arm at
-    /// `SELECT_EMISSION_TEST + k`, with the other arms).
+    /// `SELECT_EMISSION_TEST`, with the other arms).
     pub const SELECT_EMISSION_LOBE: u64 = SELECT + (10 << 20);
     /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
     /// below it, the next field 2^20 above).

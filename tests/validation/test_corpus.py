@@ -359,6 +359,27 @@ def test_house_preset_has_the_required_scale():
     assert scenes.SCENES["house"].defaults["positions"] >= 10
 
 
+def test_coverage_placement_puts_a_tripod_in_every_room(tmp_path):
+    """With as many positions as rooms, greedy coverage stands one tripod in each room of the house's 3 × 4
+    grid (coarse meshes: only the placement's ray casts run), as a scan operator does; the house is built
+    that way."""
+    from dataclasses import replace
+
+    from corpus import cameras
+
+    spec = replace(scenes.SCENES["house"].spec, box_tessellation=1, sphere_subdivisions=1, surface_tessellation=1)
+    assert scenes.SCENES["house"].defaults["placement"] == "coverage"
+    mi = convert.init_mitsuba(1)
+    full, _ = scan.load_scenes(generate.write_scene(spec, tmp_path), mi)
+    space = cameras.FreeSpace(full, convert.UP_ROTATIONS["z"], mi)
+    xs, ys = np.cumsum((0.0, *spec.columns)), np.cumsum((0.0, *spec.rows))
+    bbox = np.array([[xs[0], ys[0], 0.0], [xs[-1], ys[-1], spec.height]])
+    rooms = len(spec.columns) * len(spec.rows)
+    eyes = cameras.cover_positions(space, bbox, rooms, np.random.default_rng(0))
+    cell = [(int(np.searchsorted(xs, e[0]) - 1), int(np.searchsorted(ys, e[1]) - 1)) for e in eyes]
+    assert sorted(cell) == sorted((i, j) for i in range(len(spec.columns)) for j in range(len(spec.rows)))
+
+
 def test_modern_hall(modern_hall):
     check_segment_ids(modern_hall, "modern-hall")
     check_areas(modern_hall)

@@ -51,7 +51,8 @@ pub struct Stratum {
     pub object: Option<u32>,
     /// Training pixels of the stratum in the photos.
     pub population: usize,
-    /// Indices into [`PixelSets::train`] of its pool entries, in pool order.
+    /// Indices of its pool entries into the pixels it groups ([`PixelSets::train`] in the object stage), in
+    /// pool order.
     pub members: Vec<usize>,
 }
 
@@ -339,8 +340,27 @@ fn draw_strata(
     stream: u64,
     draw: u64,
 ) -> WeightedDraw {
-    if from.is_empty() || strata.is_empty() {
+    if from.is_empty() {
         return WeightedDraw::default();
+    }
+    let (rows, weights) = draw_strata_rows(strata, n, floor, seed, stream, draw);
+    WeightedDraw { samples: rows.iter().map(|&j| from[j]).collect(), weights }
+}
+
+/// The draw of [`draw_stratified`] on given strata, as the drawn members (indices into the array the strata's
+/// `members` index) and their weights (mean 1): the one allocation and weighting of stratified solve pixels,
+/// shared by the object stage's solves and the per-triangle stage's light re-solve.
+#[must_use]
+pub fn draw_strata_rows(
+    strata: &[Stratum],
+    n: usize,
+    floor: usize,
+    seed: u64,
+    stream: u64,
+    draw: u64,
+) -> (Vec<usize>, Vec<f64>) {
+    if strata.is_empty() {
+        return (Vec::new(), Vec::new());
     }
     let total = strata.iter().map(|s| s.population).sum::<usize>() as f64;
     let rest = n.saturating_sub(floor * strata.len());
@@ -357,7 +377,7 @@ fn draw_strata(
         share[k] += 1;
         left -= 1;
     }
-    let mut out = WeightedDraw::default();
+    let (mut rows, mut weights) = (Vec::new(), Vec::new());
     for (stratum, &s) in strata.iter().zip(&share) {
         let idx = &stratum.members;
         let want = (floor + s).max(1);
@@ -367,20 +387,20 @@ fn draw_strata(
         if want >= idx.len() {
             // The whole stratum (or its whole pool), each pixel once.
             for &j in idx {
-                out.samples.push(from[j]);
-                out.weights.push(stratum_weight / idx.len() as f64);
+                rows.push(j);
+                weights.push(stratum_weight / idx.len() as f64);
             }
         } else {
             for i in 0..want as u64 {
                 let u = uniform(seed, stream, draw, stratum_key ^ i);
-                out.samples.push(from[idx[((u * idx.len() as f64) as usize).min(idx.len() - 1)]]);
-                out.weights.push(stratum_weight / want as f64);
+                rows.push(idx[((u * idx.len() as f64) as usize).min(idx.len() - 1)]);
+                weights.push(stratum_weight / want as f64);
             }
         }
     }
-    let m = out.samples.len() as f64;
-    out.weights.iter_mut().for_each(|w| *w *= m);
-    out
+    let m = rows.len() as f64;
+    weights.iter_mut().for_each(|w| *w *= m);
+    (rows, weights)
 }
 
 #[cfg(test)]

@@ -290,21 +290,51 @@ fn refit_on_column(
     delta
 }
 
-/// One arm of object k's emission test: `params` rendered on `pixels` at `holdout_spp` with the test's random
-/// numbers, which are keyed by the pixel, so every arm of k's tests (the main test's, the lobe alternative's,
-/// [`glimpse_test`]'s) gets the same estimates on the same pixels (common random numbers).
+/// One arm of an emission test: `params` rendered on `pixels` at `holdout_spp` with the test's random numbers,
+/// which are keyed by the pixel alone, so every arm of every emitter's tests (the main test's, the lobe
+/// alternative's, [`glimpse_test`]'s) gets the same estimates on the same pixels (common random numbers), and
+/// the fitted model's arm at a pixel is one estimate that all emitters' tests share ([`ModelArm`]).
 fn emission_test_arm(
     ctx: &Ctx<'_>,
     s: &ObjectFitSettings,
-    k: usize,
     params: &tracer::Params,
     pixels: &[PixelRef],
 ) -> Result<Vec<[f64; 3]>, FitError> {
     Ok(ctx
-        .render(params, pixels, s.holdout_spp, key::SELECT_EMISSION_TEST + k as u64)?
+        .render(params, pixels, s.holdout_spp, key::SELECT_EMISSION_TEST)?
         .iter()
         .map(|v| v.as_dvec3().to_array())
         .collect())
+}
+
+/// The fitted model's arm of the emission tests ([`emission_test_arm`] of the model with every emission),
+/// rendered once per pixel and kept: it does not depend on which emitter is tested, and the emitters' tests
+/// draw their pixels in one shared order (each among the pixels its light reaches), so the emitters of a room
+/// test largely the same pixels and render the model there once.
+struct ModelArm<'p> {
+    params: &'p tracer::Params,
+    at: std::collections::HashMap<PixelRef, [f64; 3]>,
+}
+
+impl ModelArm<'_> {
+    /// The arm at `pixels`, rendering those not yet rendered.
+    fn on(&mut self, ctx: &Ctx<'_>, s: &ObjectFitSettings, pixels: &[PixelRef]) -> Result<Vec<[f64; 3]>, FitError> {
+        let mut new: Vec<PixelRef> = pixels.iter().copied().filter(|p| !self.at.contains_key(p)).collect();
+        new.sort_unstable_by_key(|p| streams::pixel_key(*p));
+        new.dedup();
+        if !new.is_empty() {
+            let values = emission_test_arm(ctx, s, self.params, &new)?;
+            self.at.extend(new.into_iter().zip(values));
+        }
+        Ok(pixels.iter().map(|p| self.at[p]).collect())
+    }
+}
+
+/// The rank of a test pixel in the order in which every emission test draws its pixels (the emitter's own
+/// pixels and the others it lights, each in this order; [`glimpse_test`]'s likewise): one order for all
+/// emitters, so that their tests share pixels and with them the model's arm ([`ModelArm`]).
+fn emission_test_rank(seed: u64, pixel: PixelRef) -> f64 {
+    streams::uniform(seed, draw::EMISSION_TEST, streams::pixel_key(pixel), 0)
 }
 
 /// An emission test's estimates at one pixel: the render of the model, the render without the emission, and
@@ -398,14 +428,15 @@ fn glimpse_test(
     ctx: &Ctx<'_>,
     s: &ObjectFitSettings,
     sets: &PixelSets,
-    params: &tracer::Params,
+    model: &mut ModelArm<'_>,
     x: &[f64],
     k: usize,
 ) -> Result<Option<Glimpse>, FitError> {
+    let params = model.params;
     let mine = |t: &&Sample| t.object == Some(k as u32);
     let held: Vec<Sample> = sets.holdout.iter().filter(mine).copied().collect();
     let held_only = held.len() >= solve::MIN_PIXELS;
-    let rank = |t: &Sample| streams::uniform(ctx.seed, draw::EMISSION_TEST, streams::pixel_key(t.pixel), k as u64);
+    let rank = |t: &Sample| emission_test_rank(ctx.seed, t.pixel);
     let mut own: Vec<Sample> = if held_only {
         // Enough held-out pixels of its own: the test is on them alone, within the test budget.
         super::pixels::cap_per_object(held, s.holdout_pixels as usize, rank).0
@@ -438,8 +469,8 @@ fn glimpse_test(
     let mut n = FIRST_LOOK.min(n_full);
     let (against_diffuse, pred) = loop {
         let new_px: Vec<PixelRef> = own[pred.len()..n].iter().map(|t| t.pixel).collect();
-        pred.extend(emission_test_arm(ctx, s, k, params, &new_px)?);
-        without_fitted.extend(emission_test_arm(ctx, s, k, &no_k, &new_px)?);
+        pred.extend(model.on(ctx, s, &new_px)?);
+        without_fitted.extend(emission_test_arm(ctx, s, &no_k, &new_px)?);
         col.extend(base_color_column(ctx, s, params, k, &new_px)?);
         let mut without = without_fitted.clone();
         refit_on_column(x, k, &col, &tgt[..n], &vec![1.0; n], &mut without);
@@ -462,7 +493,7 @@ fn glimpse_test(
     let px: Vec<PixelRef> = own.iter().map(|t| t.pixel).collect();
     let against_lobe = if glimpse_gain(against_diffuse) {
         let alt = layout::to_params(&best_lobe_without_emission(ctx, s, own, x, k)?);
-        Some(paired(&emission_test_arm(ctx, s, k, &alt, &px)?))
+        Some(paired(&emission_test_arm(ctx, s, &alt, &px)?))
     } else {
         None
     };
@@ -719,6 +750,7 @@ pub fn choose_models(
             lit_of[k] = (0..test.len()).filter(|&j| pilot[k][j].iter().any(|&v| v != 0.0)).collect();
         }
     }
+    let mut model = ModelArm { params: &params, at: std::collections::HashMap::new() };
     let mut emits = vec![false; k_count];
     let mut material_refit = false;
     let mut tested = 0;
@@ -735,7 +767,7 @@ pub fn choose_models(
         // up to half the budget plus the other's unused share: drawn from all lit pixels alike, a small visible
         // lamp's few dozen own pixels, which carry most of the evidence, were a heavy tail of the paired
         // differences (a house's visible ceiling lights, 12 % gains at t = 2.5, were dropped).
-        let rank = |j: usize| streams::uniform(ctx.seed, draw::EMISSION_TEST, streams::pixel_key(pix[j]), k as u64);
+        let rank = |j: usize| emission_test_rank(ctx.seed, pix[j]);
         // Each stratum in rank order, so that its first n pixels are a draw of n.
         let ranked = |mut v: Vec<usize>, n: usize| -> Vec<usize> {
             v.sort_by(|&a, &b| rank(a).total_cmp(&rank(b)).then(a.cmp(&b)));
@@ -763,7 +795,7 @@ pub fn choose_models(
         // carry the same kind of Monte Carlo noise. (The render minus a separately estimated J_k e_k has the
         // column's noise in one arm only; the L1 of the noisier arm is larger on average, which kept spurious
         // faint emissions on Daylight Room's ceiling and wall.)
-        let arm_on = |params: &tracer::Params, pixels: &[PixelRef]| emission_test_arm(ctx, s, k, params, pixels);
+        let arm_on = |params: &tracer::Params, pixels: &[PixelRef]| emission_test_arm(ctx, s, params, pixels);
         let no_k = {
             let mut p = params.clone();
             p.emission[k] = glam::Vec3::ZERO;
@@ -777,13 +809,16 @@ pub fn choose_models(
         // Per test pixel: the two arms and k's base-colour column.
         let mut cache: std::collections::HashMap<usize, ArmsAt> = std::collections::HashMap::new();
         // Renders the arms (and, for a free base colour, the column) of the test rows `rows` not yet in `cache`.
-        let fill = |cache: &mut std::collections::HashMap<usize, ArmsAt>, rows: &[usize]| -> Result<(), FitError> {
+        let fill = |cache: &mut std::collections::HashMap<usize, ArmsAt>,
+                    model: &mut ModelArm<'_>,
+                    rows: &[usize]|
+         -> Result<(), FitError> {
             let new: Vec<usize> = rows.iter().copied().filter(|j| !cache.contains_key(j)).collect();
             if new.is_empty() {
                 return Ok(());
             }
             let new_px: Vec<PixelRef> = new.iter().map(|&j| pix[j]).collect();
-            let new_pred = arm_on(&params, &new_px)?;
+            let new_pred = model.on(ctx, s, &new_px)?;
             let new_without = arm_on(&no_k, &new_px)?;
             let new_col =
                 if free[k] { base_color_column(ctx, s, &params, k, &new_px)? } else { vec![[0.0; 3]; new.len()] };
@@ -798,7 +833,7 @@ pub fn choose_models(
             let (a, b) = (part(n_own), part(n_other));
             let mut on: Vec<usize> = own[..a].iter().chain(&other[..b]).copied().collect();
             on.sort_unstable();
-            fill(&mut cache, &on)?;
+            fill(&mut cache, &mut model, &on)?;
             let (w_own, w_other) = (share(n_lit_own, a), share(n_lit_other, b));
             let tgt: Vec<[f64; 3]> = on.iter().map(|&j| target(&test[j])).collect();
             let is_own: Vec<bool> = on.iter().map(|&j| test[j].object == Some(k as u32)).collect();
@@ -854,7 +889,7 @@ pub fn choose_models(
         let mut own_rows: Vec<usize> = own.clone();
         own_rows.sort_unstable();
         if beats(t, rel) && free[k] && own_rows.len() >= 2 {
-            fill(&mut cache, &own_rows)?;
+            fill(&mut cache, &mut model, &own_rows)?;
             let x_alt = best_lobe_without_emission(ctx, s, &profile_samples(ctx, sets, k), &x, k)?;
             let own_px: Vec<PixelRef> = own_rows.iter().map(|&j| pix[j]).collect();
             let own_tgt: Vec<[f64; 3]> = own_rows.iter().map(|&j| target(&test[j])).collect();
@@ -886,7 +921,7 @@ pub fn choose_models(
         }
         let lobe_wins = lobe.as_ref().is_some_and(|l| !beats(l.emission_against_lobe.1, l.emission_against_lobe.0));
         // An emitter the pixels it lights do not keep is tested where it is seen ([`glimpse_test`]).
-        let glimpse = if !beats(t, rel) { glimpse_test(ctx, s, sets, &params, &x, k)? } else { None };
+        let glimpse = if !beats(t, rel) { glimpse_test(ctx, s, sets, &mut model, &x, k)? } else { None };
         let glimpse_kept = glimpse
             .as_ref()
             .filter(|g| glimpse_gain(g.against_diffuse))

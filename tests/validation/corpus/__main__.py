@@ -19,6 +19,9 @@ def main(argv=None) -> int:
     b.add_argument("--up", choices=("y", "z"), help="up axis of an XML file given by path (default z)")
     b.add_argument("--hfov", type=float, default=60.0, help="horizontal field of view, degrees")
     b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--placement", choices=("spread", "coverage"),
+                   help="tripod placement: farthest-point spread, or greedy coverage of the unseen surface "
+                        "(default: the scene's, else spread)")
     b.add_argument("--threads", type=int, default=1)
     b.add_argument("--force", action="store_true",
                    help="rebuild even when OUT_DIR holds a finished build of the same XML and settings")
@@ -63,7 +66,7 @@ def main(argv=None) -> int:
         init_mitsuba(a.threads)
         xml, up, defaults = scenes.resolve(a.scene, a.out_dir)
         opts = dict(defaults)
-        for k in ("width", "height", "spp", "positions", "novel_positions", "novel_spp", "max_depth"):
+        for k in ("width", "height", "spp", "positions", "novel_positions", "novel_spp", "max_depth", "placement"):
             if getattr(a, k) is not None:
                 opts[k] = getattr(a, k)
         house = Path(a.scene).stem if a.scene not in scenes.SCENES else a.scene

@@ -136,6 +136,10 @@ def measure_portal(render_scene, obj, rot, max_depth: int, seed: int, mi) -> lis
     return [float(x) for x in L.mean(axis=0)]
 
 
+# Tripod placement (`cameras` module docs): spread farthest-point first, or cover the most unseen surface.
+PLACEMENTS = {"spread": cams.sample_positions, "coverage": cams.cover_positions}
+
+
 def novel_cameras(space, bbox, train_eyes, count, width, height, hfov, rng) -> list[cams.Camera]:
     eyes = cams.sample_positions(space, bbox, count, rng, exclude=train_eyes)
     fx, fy, cx, cy = cams.intrinsics(width, height, hfov)
@@ -182,6 +186,7 @@ def build(
     scene_name: str | None = None,
     log=print,
     force: bool = False,
+    placement: str = "spread",
 ) -> dict:
     """Builds the scan of `xml_path` into `out_dir` (module docs); returns the ground-truth record. A scan that
     `out_dir` already holds, finished (its `ground_truth.json` is written last) from the same XML (SHA-256 of
@@ -194,6 +199,9 @@ def build(
     source_sha256 = hashlib.sha256(Path(xml_path).read_bytes()).hexdigest()
     settings = dict(width=width, height=height, spp=spp, max_depth=max_depth, positions=positions,
                     novel_positions=novel_positions, novel_spp=novel_spp, hfov_deg=hfov, seed=seed)
+    if placement != "spread":
+        # Recorded only when not the default, so that the records of builds from before the choice still match.
+        settings["placement"] = placement
     kept = None if force else finished_build(out_dir, source_sha256, settings)
     if kept is not None:
         log(f"{out_dir}: already built from this XML with these settings (kept; --force rebuilds)")
@@ -210,7 +218,9 @@ def build(
     allpos = np.concatenate([o.positions for o in objects])
     bbox = np.stack([allpos.min(0), allpos.max(0)])
     space = cams.FreeSpace(full, rot, mi)
-    eyes = cams.sample_positions(space, bbox, positions, rng)
+    if placement not in PLACEMENTS:
+        raise ValueError(f"placement {placement!r}: expected one of {', '.join(PLACEMENTS)}")
+    eyes = PLACEMENTS[placement](space, bbox, positions, rng)
     if len(eyes) < positions:
         raise RuntimeError(f"only {len(eyes)} of {positions} tripod positions found in free space")
     train = []

@@ -57,7 +57,7 @@ SCENES = {
         sphere_subdivisions=4, surface_tessellation=8, textured_fraction=0.4, metal_fraction=0.15,
         plastic_fraction=0.25, ceiling_lights=("warm", "white", "cool", "warm", ""),
         uplights=("orange", "white", "green", "warm"), windows_per_exterior_wall=0.7, sky="envmap"),
-        defaults=dict(width=80, height=64, spp=16, positions=12, novel_positions=3)),
+        defaults=dict(width=80, height=64, spp=16, positions=12, novel_positions=3, placement="coverage")),
     "tiny": SceneEntry("tiny", HouseSpec(
         name="tiny", seed=5, **ROOM, furniture_per_room=(1, 1), textured_fraction=1.0,
         ceiling_lights=("warm",), uplights=("cool",)),
