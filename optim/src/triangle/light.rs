@@ -280,6 +280,7 @@ pub fn refine_light(
     let mut work = tracer::TraceStats::default();
     let start = state.emission.clone();
     let kept_materials = state.materials.clone();
+    let from: Vec<[f32; 3]> = emitters.iter().map(|&o| start[o].to_array()).collect();
     let mut fitted: Option<Fitted> = None;
     for cycle in 0..LIGHT_CYCLES {
         let base: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
@@ -313,17 +314,16 @@ pub fn refine_light(
             // that every albedo then follows. Not significant: the cycle is undone (emission and materials as
             // the round's fit left them) and the rest of the re-solve (a second cycle, two ratio passes) is
             // skipped.
-            let from: Vec<DVec3> = emitters.iter().map(|&o| start[o].as_dvec3()).collect();
-            let p = light_change_p(&from, &averaged);
+            let start_e: Vec<DVec3> = emitters.iter().map(|&o| start[o].as_dvec3()).collect();
+            let p = light_change_p(&start_e, &averaged);
             let proposed: Vec<[f32; 3]> = mean_e.iter().map(|e| e.as_vec3().to_array()).collect();
             tracing::debug!(round, p, ?proposed, "triangle light change test");
             if p > LIGHT_SIGNIFICANCE {
                 state.emission.clone_from(&start);
                 state.materials.clone_from(&kept_materials);
-                let kept: Vec<[f32; 3]> = emitters.iter().map(|&o| start[o].to_array()).collect();
-                tracing::info!(round, p, ?kept, ?proposed, "triangle light kept");
+                tracing::info!(round, p, kept = ?from, ?proposed, "triangle light kept");
                 progress.note(&format!(
-                    "[triangle] round {round}: light kept at {kept:?} (proposed {proposed:?}: p = {p:.3} > \
+                    "[triangle] round {round}: light kept at {from:?} (proposed {proposed:?}: p = {p:.3} > \
                      {LIGHT_SIGNIFICANCE}, no significant change)"
                 ));
                 bound_discards(round, work.discarded, work.paths)?;
@@ -360,7 +360,6 @@ pub fn refine_light(
         let to: Vec<[f32; 3]> = emitters.iter().map(|&o| state.emission[o].to_array()).collect();
         let (t, before, after) = fit_change(inputs, scene, samples, &kept_materials, &start, state, round, &mut work)?;
         if fits_worse(t, before, after) {
-            let from: Vec<[f32; 3]> = emitters.iter().map(|&o| start[o].to_array()).collect();
             state.emission.clone_from(&start);
             state.materials.clone_from(&kept_materials);
             tracing::info!(round, cycle, t, before, after, ?from, ?to, "triangle light re-solve refused");
@@ -374,7 +373,6 @@ pub fn refine_light(
         }
     }
     let Some(mut fitted) = fitted else { return Ok(None) };
-    let from: Vec<[f32; 3]> = emitters.iter().map(|&o| start[o].to_array()).collect();
     let to: Vec<[f32; 3]> = emitters.iter().map(|&o| state.emission[o].to_array()).collect();
     tracing::info!(round, ?from, ?to, "triangle light re-solved");
     progress.note(&format!(

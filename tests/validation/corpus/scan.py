@@ -193,6 +193,9 @@ def build(
     its bytes) with the same settings, is kept and its record returned, unless `force`: a Mitsuba build costs
     minutes."""
     t0 = time.time()
+    # Checked before the scene is loaded, which for a house takes seconds.
+    if placement not in PLACEMENTS:
+        raise ValueError(f"placement {placement!r}: expected one of {', '.join(PLACEMENTS)}")
     # Held-out renders are references for PSNR: 4× the training samples halves their noise.
     novel_spp = novel_spp or 4 * spp
     out_dir = Path(out_dir)
@@ -218,8 +221,6 @@ def build(
     allpos = np.concatenate([o.positions for o in objects])
     bbox = np.stack([allpos.min(0), allpos.max(0)])
     space = cams.FreeSpace(full, rot, mi)
-    if placement not in PLACEMENTS:
-        raise ValueError(f"placement {placement!r}: expected one of {', '.join(PLACEMENTS)}")
     eyes = PLACEMENTS[placement](space, bbox, positions, rng)
     if len(eyes) < positions:
         raise RuntimeError(f"only {len(eyes)} of {positions} tripod positions found in free space")
