@@ -26,7 +26,7 @@ use crate::camera::Camera;
 use crate::error::TracerError;
 use crate::integrator::{self, Context, DIM_JITTER, GradEntry, Mode};
 use crate::lights::LightSampler;
-use crate::params::{Grads, Params, TracerSettings};
+use crate::params::{Grads, MaterialGradSum, Params, TracerSettings};
 use crate::rng::{PathSampler, PixelKey, Stream};
 use crate::scene::Scene;
 use glam::{DVec3, Vec2, Vec3};
@@ -256,6 +256,67 @@ impl<'a> Renderer<'a> {
         seed: u64,
         iteration: u64,
     ) -> Result<(Vec<Grads>, TraceStats), TracerError> {
+        let per_pixel = self.pixel_entries(cameras, pixels, weight_sets, spp_grad, seed, iteration, |_, e| e)?;
+        let mut grads = vec![Grads::zeros_like(self.params); weight_sets.len()];
+        for (e, ..) in &per_pixel {
+            for (g, e) in grads.iter_mut().zip(e) {
+                integrator::accumulate(g, e);
+            }
+        }
+        Ok((grads, gradient_stats(&per_pixel)))
+    }
+
+    /// Per pixel j, [`Renderer::gradient_pixels`] of pixel j alone with weight `weights[j]`, as the sparse
+    /// list of the parameters its paths touched ([`SparseGrads`]: every value bit for bit the dense table's),
+    /// and the work done. A Jacobian row per pixel: a dense table per pixel holds every material slot, which
+    /// with a slot per triangle (a house's 521 k) is 25 MB to clear and read for each pixel, where its paths
+    /// touch a few hundred.
+    pub fn gradient_rows(
+        &self,
+        cameras: &[Camera],
+        pixels: &[PixelRef],
+        weights: &[Vec3],
+        spp_grad: u32,
+        seed: u64,
+        iteration: u64,
+    ) -> Result<(Vec<SparseGrads>, TraceStats), TracerError> {
+        self.gradient_rows_with(cameras, pixels, weights, spp_grad, seed, iteration, |_, row| row)
+    }
+
+    /// [`Renderer::gradient_rows`] with each pixel's row reduced by `reduce(j, row)` as soon as it is
+    /// estimated, so that only the reductions are held (a row over a house's triangles holds up to thousands
+    /// of entries).
+    #[allow(clippy::too_many_arguments)]
+    pub fn gradient_rows_with<T: Send>(
+        &self,
+        cameras: &[Camera],
+        pixels: &[PixelRef],
+        weights: &[Vec3],
+        spp_grad: u32,
+        seed: u64,
+        iteration: u64,
+        reduce: impl Fn(usize, SparseGrads) -> T + Sync,
+    ) -> Result<(Vec<T>, TraceStats), TracerError> {
+        let per_pixel = self.pixel_entries(cameras, pixels, &[weights], spp_grad, seed, iteration, |j, e| {
+            reduce(j, e.first().map_or_else(SparseGrads::default, |e| sparse(e)))
+        })?;
+        let stats = gradient_stats(&per_pixel);
+        Ok((per_pixel.into_iter().map(|p| p.0).collect(), stats))
+    }
+
+    /// Every pixel's gradient entries per weighting (validated as [`Renderer::gradient_pixels_weighted`]
+    /// documents), reduced by `reduce(j, entries)`, with its ray counts, paths and discarded paths.
+    #[allow(clippy::too_many_arguments)]
+    fn pixel_entries<T: Send>(
+        &self,
+        cameras: &[Camera],
+        pixels: &[PixelRef],
+        weight_sets: &[&[Vec3]],
+        spp_grad: u32,
+        seed: u64,
+        iteration: u64,
+        reduce: impl Fn(usize, Vec<Vec<GradEntry>>) -> T + Sync,
+    ) -> Result<Vec<PixelGrads<T>>, TracerError> {
         check_pixels(cameras, pixels, spp_grad)?;
         for weights in weight_sets {
             if weights.len() != pixels.len() {
@@ -277,13 +338,17 @@ impl<'a> Renderer<'a> {
         }
         let ctx = self.context();
         let n_sets = weight_sets.len();
-        let per_pixel: Vec<PixelGrads> = pixels
+        let per_pixel: Vec<PixelGrads<T>> = pixels
             .par_iter()
             .enumerate()
             .map_init(
-                || (Vec::new(), Vec::new()),
-                |(record, path_entries), (j, &p)| {
+                || (Vec::new(), Vec::new(), Vec::<integrator::EntryIndex>::new()),
+                |(record, path_entries, indices), (j, &p)| {
                     let mut entries = vec![Vec::new(); n_sets];
+                    indices.resize_with(n_sets, Default::default);
+                    for index in indices.iter_mut() {
+                        index.clear();
+                    }
                     let mut rays = [0; 2];
                     let mut discarded = 0;
                     // A zero weight means the pixel does not enter that objective: its gradient is exactly zero.
@@ -292,50 +357,90 @@ impl<'a> Renderer<'a> {
                         .map(|w| Some(w[j]).filter(|&w| w != Vec3::ZERO).map(|w| w / spp_grad as f32))
                         .collect();
                     if ws.iter().all(Option::is_none) {
-                        return (entries, rays, 0, 0);
+                        return (reduce(j, entries), rays, 0, 0);
                     }
                     for s in 0..spp_grad {
                         let rng = PathSampler::new(seed, Stream::Gradient, iteration, key(p), s);
                         let (o, d) = primary(cameras, p, &rng);
                         let l = integrator::trace(&ctx, o, d, &rng, Mode::Gradient, record, &mut rays);
                         let mut dropped = false;
-                        for (w, out) in ws.iter().zip(&mut entries) {
+                        for ((w, out), index) in ws.iter().zip(&mut entries).zip(indices.iter_mut()) {
                             let Some(w) = *w else { continue };
                             // The path's contributions go to a scratch list first, so that a non-finite one can
                             // be dropped whole (module doc) without touching the pixel's sums.
                             path_entries.clear();
                             integrator::backward(record, w, path_entries);
                             if l.is_finite() && entries_are_finite(path_entries) {
-                                integrator::merge(out, path_entries);
+                                integrator::merge(out, path_entries, index);
                             } else {
                                 dropped = true;
                             }
                         }
                         discarded += u64::from(dropped);
                     }
-                    (entries, rays, u64::from(spp_grad), discarded)
+                    (reduce(j, entries), rays, u64::from(spp_grad), discarded)
                 },
             )
             .collect();
-        let mut grads = vec![Grads::zeros_like(self.params); n_sets];
-        let mut stats = TraceStats::default();
-        for (e, rays, paths, discarded) in &per_pixel {
-            for (g, e) in grads.iter_mut().zip(e) {
-                integrator::accumulate(g, e);
-            }
-            stats.rays += rays[0] + rays[1];
-            stats.shadow_rays += rays[1];
-            stats.paths += paths;
-            stats.discarded += discarded;
-        }
-        add_to_totals(&stats);
-        Ok((grads, stats))
+        Ok(per_pixel)
     }
 }
 
-/// One pixel's gradient entries per weighting, its [closest-hit, shadow] ray counts, paths and discarded
-/// paths.
-type PixelGrads = (Vec<Vec<GradEntry>>, [u64; 2], u64, u64);
+/// The work of a gradient call from its pixels' counts, added to the process totals.
+fn gradient_stats<T>(per_pixel: &[PixelGrads<T>]) -> TraceStats {
+    let mut stats = TraceStats::default();
+    for (_, rays, paths, discarded) in per_pixel {
+        stats.rays += rays[0] + rays[1];
+        stats.shadow_rays += rays[1];
+        stats.paths += paths;
+        stats.discarded += discarded;
+    }
+    add_to_totals(&stats);
+    stats
+}
+
+/// One pixel's gradient as sparse lists ([`Renderer::gradient_rows`]): every parameter the pixel's paths
+/// touched, in ascending slot order, with the sum of its entries.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SparseGrads {
+    /// (material slot, ∂/∂ of its parameters).
+    pub materials: Vec<(u32, MaterialGradSum)>,
+    /// (emitter slot, ∂/∂ of its emission).
+    pub emission: Vec<(u32, DVec3)>,
+}
+
+/// A pixel's entries as [`SparseGrads`]: each parameter's entries summed from zero in their order, as
+/// [`integrator::accumulate`] sums them into a zeroed dense table, so every value is the dense one bit for bit.
+fn sparse(entries: &[GradEntry]) -> SparseGrads {
+    let mut order: Vec<usize> = (0..entries.len()).collect();
+    // Stable: a parameter's entries keep their order.
+    order.sort_by_key(|&i| match entries[i] {
+        GradEntry::Material(t, _) => (0u8, t),
+        GradEntry::Emission(k, _) => (1u8, k),
+    });
+    let mut out = SparseGrads::default();
+    for i in order {
+        match entries[i] {
+            GradEntry::Material(t, ref m) => match out.materials.last_mut() {
+                Some((last, acc)) if *last == t => acc.add(m),
+                _ => {
+                    let mut acc = MaterialGradSum::default();
+                    acc.add(m);
+                    out.materials.push((t, acc));
+                }
+            },
+            GradEntry::Emission(k, d) => match out.emission.last_mut() {
+                Some((last, acc)) if *last == k => *acc += d,
+                _ => out.emission.push((k, DVec3::ZERO + d)),
+            },
+        }
+    }
+    out
+}
+
+/// One pixel's gradient entries per weighting (or what a caller reduced them to), its [closest-hit, shadow]
+/// ray counts, paths and discarded paths.
+type PixelGrads<T = Vec<Vec<GradEntry>>> = (T, [u64; 2], u64, u64);
 
 /// The work of a value-mode call over `n_pixels` pixels at `spp` paths each, from every pixel's [closest-hit,
 /// shadow] ray counts and discarded paths, added to the process totals.

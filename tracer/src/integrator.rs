@@ -574,13 +574,95 @@ fn add_material(out: &mut Vec<GradEntry>, idx: u32, m: &MaterialGradSum) {
     out.push(GradEntry::Material(idx, *m));
 }
 
-/// Adds one path's entries (from [`backward`] into an empty vector) to a pixel's entries, merged like
-/// [`backward`] merges them.
-pub(crate) fn merge(out: &mut Vec<GradEntry>, path: &[GradEntry]) {
-    for e in path {
+/// Where the most recent entry of each parameter lies in one pixel's entry list: [`merge`]'s lookup, an
+/// open-addressing table keyed by the parameter (kind and index), so that merging a path's entry costs one
+/// lookup instead of a scan of the list's last [`MERGE_WINDOW`] entries (56 bytes each). On a 213-object house
+/// the scan was 8 % of the object stage's lobe search (`docs/scale/README.md`, "Per-pixel gradients at house
+/// scale"). Cleared for every pixel's list ([`EntryIndex::clear`]).
+#[derive(Debug, Default, Clone)]
+pub(crate) struct EntryIndex {
+    /// Per bucket: the key ([`EntryIndex::EMPTY`] when free); a power-of-two length, at most half full.
+    keys: Vec<u64>,
+    /// Per bucket: the position of the key's most recent entry in the list.
+    at: Vec<u32>,
+    /// Occupied buckets.
+    used: usize,
+}
+
+impl EntryIndex {
+    const EMPTY: u64 = u64::MAX;
+    /// Buckets of a table's first allocation: a pixel's paths touch tens of parameters on a house.
+    const FIRST: usize = 64;
+
+    /// Forgets every entry (the next pixel's list starts empty).
+    pub(crate) fn clear(&mut self) {
+        if self.used > 0 {
+            self.keys.fill(Self::EMPTY);
+            self.used = 0;
+        }
+    }
+
+    fn key(e: &GradEntry) -> u64 {
         match *e {
-            GradEntry::Material(i, ref m) => add_material(out, i, m),
-            GradEntry::Emission(i, d) => add_emission(out, i, d),
+            GradEntry::Material(i, _) => u64::from(i) << 1,
+            GradEntry::Emission(i, _) => (u64::from(i) << 1) | 1,
+        }
+    }
+
+    /// The bucket holding `key`, or the free one where it goes (linear probing from a Fibonacci hash).
+    fn bucket(&self, key: u64) -> usize {
+        let mask = self.keys.len() - 1;
+        let mut b = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 32) as usize & mask;
+        loop {
+            let k = self.keys[b];
+            if k == key || k == Self::EMPTY {
+                return b;
+            }
+            b = (b + 1) & mask;
+        }
+    }
+
+    /// Makes room for one more key at a load of at most one half.
+    fn reserve_one(&mut self) {
+        if 2 * (self.used + 1) <= self.keys.len() {
+            return;
+        }
+        let cap = (2 * self.keys.len()).max(Self::FIRST);
+        let keys = std::mem::replace(&mut self.keys, vec![Self::EMPTY; cap]);
+        let at = std::mem::replace(&mut self.at, vec![0; cap]);
+        for (k, a) in keys.into_iter().zip(at) {
+            if k != Self::EMPTY {
+                let b = self.bucket(k);
+                self.keys[b] = k;
+                self.at[b] = a;
+            }
+        }
+    }
+}
+
+/// Adds one path's entries (from [`backward`] into an empty vector) to a pixel's entries `out`, merged like
+/// [`backward`] merges them: into the parameter's most recent entry when it is among the last
+/// [`MERGE_WINDOW`], else appended. `index` holds the positions of `out`'s entries (empty with `out`).
+pub(crate) fn merge(out: &mut Vec<GradEntry>, path: &[GradEntry], index: &mut EntryIndex) {
+    for e in path {
+        index.reserve_one();
+        let key = EntryIndex::key(e);
+        let b = index.bucket(key);
+        let start = out.len().saturating_sub(MERGE_WINDOW);
+        if index.keys[b] == key && index.at[b] as usize >= start {
+            match (&mut out[index.at[b] as usize], e) {
+                (GradEntry::Material(_, acc), GradEntry::Material(_, m)) => acc.add(m),
+                (GradEntry::Emission(_, acc), GradEntry::Emission(_, d)) => *acc += *d,
+                // The key holds the kind, so the entry found under it is of the same kind.
+                _ => unreachable!("entry index: kinds differ under one key"),
+            }
+        } else {
+            if index.keys[b] == EntryIndex::EMPTY {
+                index.keys[b] = key;
+                index.used += 1;
+            }
+            index.at[b] = out.len() as u32;
+            out.push(*e);
         }
     }
 }
@@ -617,6 +699,68 @@ mod tests {
     use super::*;
     use crate::rng::{PixelKey, Stream};
     use crate::scene::SceneInput;
+
+    /// The merge as a scan of the last [`MERGE_WINDOW`] entries (what [`backward`] does within a path).
+    fn merge_by_scan(out: &mut Vec<GradEntry>, path: &[GradEntry]) {
+        for e in path {
+            match *e {
+                GradEntry::Material(i, ref m) => add_material(out, i, m),
+                GradEntry::Emission(i, d) => add_emission(out, i, d),
+            }
+        }
+    }
+
+    /// The indexed merge gives the scan's entries, in its order, with its sums bit for bit: over pixels whose
+    /// paths touch a few parameters (all merged) and pixels whose paths touch thousands (per-triangle slots,
+    /// where older entries leave the window and a parameter gets a second entry), one index reused across
+    /// pixels as the renderer reuses it.
+    #[test]
+    fn the_indexed_merge_is_the_scan() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut index = EntryIndex::default();
+        let mut second_entries = 0;
+        for (pixel, params) in [8u64, 40, 3000, 12, 100_000, 5].into_iter().enumerate() {
+            index.clear();
+            let (mut scanned, mut indexed) = (Vec::new(), Vec::new());
+            for _ in 0..64 {
+                let path: Vec<GradEntry> = (0..1 + next() % 12)
+                    .map(|_| {
+                        let i = (next() % params) as u32;
+                        let v = (next() % 1000) as f64 / 7.0 - 50.0;
+                        if next() % 3 == 0 {
+                            GradEntry::Emission(i, DVec3::new(v, -v, 0.5 * v))
+                        } else {
+                            let m = MaterialGradSum {
+                                base_color: DVec3::new(v, 0.25 * v, -v),
+                                roughness: v,
+                                metallic: 0.0,
+                                specular: -0.5 * v,
+                            };
+                            GradEntry::Material(i, m)
+                        }
+                    })
+                    .collect();
+                merge_by_scan(&mut scanned, &path);
+                merge(&mut indexed, &path, &mut index);
+            }
+            assert_eq!(scanned.len(), indexed.len(), "pixel {pixel}");
+            for (a, b) in scanned.iter().zip(&indexed) {
+                assert_eq!(format!("{a:?}"), format!("{b:?}"), "pixel {pixel}");
+            }
+            let mut keys: Vec<u64> = indexed.iter().map(EntryIndex::key).collect();
+            keys.sort_unstable();
+            keys.dedup();
+            second_entries += indexed.len() - keys.len();
+        }
+        // The window was exercised: some parameter got a second entry.
+        assert!(second_entries > 0);
+    }
 
     /// A closed unit cube (inward faces, emitter slot 0 off) with a glossy floor and an emitting ceiling
     /// (emitter slot 1), and the floor on its own emitter slot 2.

@@ -47,7 +47,8 @@ pub mod rng;
 pub mod scene;
 
 pub use batch::{
-    MAX_DEPTH_LIMIT, PixelRef, Renderer, TraceStats, gradient_pixels, render_image, render_pixels, total_trace_stats,
+    MAX_DEPTH_LIMIT, PixelRef, Renderer, SparseGrads, TraceStats, gradient_pixels, render_image, render_pixels,
+    total_trace_stats,
 };
 pub use bsdf::{Material, MaterialAt, MaterialGrad};
 pub use camera::Camera;

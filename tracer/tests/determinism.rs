@@ -100,3 +100,36 @@ fn weighted_gradients_match_one_weighting_at_a_time() {
     // The paths were traced once for the four weightings.
     assert_eq!(stats.paths, 256 * 4);
 }
+
+#[test]
+fn gradient_rows_match_each_pixel_alone() {
+    let GlossyRoom { scene, params, cam, pixels, settings } = glossy_room();
+    // A weight per pixel, some zero (those pixels trace nothing and have empty rows).
+    let weights: Vec<Vec3> =
+        (0..256).map(|j| if j % 5 == 0 { Vec3::ZERO } else { Vec3::new(1.0, 0.5 + j as f32 / 256.0, -0.25) }).collect();
+    let renderer = Renderer::new(&scene, &params, &settings).expect("renderer");
+    let (rows, stats) = renderer.gradient_rows(&[cam], &pixels, &weights, 4, 3, 17).expect("rows");
+    assert_eq!(rows.len(), pixels.len());
+    let mut touched = 0;
+    for ((row, p), w) in rows.iter().zip(&pixels).zip(&weights) {
+        let alone = gradient_pixels(&scene, &params, &[cam], &[*p], &[*w], 4, &settings, 3, 17).expect("gradient");
+        // The row holds exactly the dense table's non-zero entries, in ascending slot order, bit for bit.
+        let mut dense = tracer::Grads::zeros_like(&params);
+        for &(t, m) in &row.materials {
+            dense.materials[t as usize] = m;
+        }
+        for &(k, d) in &row.emission {
+            dense.emission[k as usize] = d;
+        }
+        assert_eq!(dense, alone, "pixel {p:?}");
+        assert!(row.materials.windows(2).all(|w| w[0].0 < w[1].0));
+        assert!(row.emission.windows(2).all(|w| w[0].0 < w[1].0));
+        touched += usize::from(!row.materials.is_empty());
+        if *w == Vec3::ZERO {
+            assert_eq!(*row, tracer::SparseGrads::default());
+        }
+    }
+    assert!(touched > 200, "{touched} pixels with entries");
+    // Zero-weight pixels trace nothing.
+    assert_eq!(stats.paths, 4 * weights.iter().filter(|w| **w != Vec3::ZERO).count() as u64);
+}

@@ -95,18 +95,13 @@ pub fn base_color_columns_of(
     iteration_key: u64,
     wanted: &[bool],
 ) -> Result<Vec<SparseColumn>, TracerError> {
-    let rows: Vec<SparseColumn> = pixels
-        .par_iter()
-        .map(|p| {
-            let g = ctx.gradient(params, std::slice::from_ref(p), &[glam::Vec3::ONE], spp, iteration_key)?;
-            Ok(g.materials
-                .iter()
-                .enumerate()
-                .filter(|(k, m)| wanted.get(*k).copied().unwrap_or(false) && m.base_color != glam::DVec3::ZERO)
-                .map(|(k, m)| (k as u32, m.base_color.to_array()))
-                .collect())
-        })
-        .collect::<Result<_, TracerError>>()?;
+    let rows: Vec<SparseColumn> = ctx.gradient_rows(params, pixels, spp, iteration_key, |_, g| {
+        g.materials
+            .iter()
+            .filter(|(k, m)| wanted.get(*k as usize).copied().unwrap_or(false) && m.base_color != glam::DVec3::ZERO)
+            .map(|&(k, ref m)| (k, m.base_color.to_array()))
+            .collect()
+    })?;
     let mut cols = vec![Vec::new(); params.materials.len()];
     for (j, row) in rows.into_iter().enumerate() {
         for (k, v) in row {
@@ -157,6 +152,24 @@ impl Ctx<'_> {
         let (grads, stats) = r.gradient_pixels(self.cameras, pixels, weights, spp, self.seed, key)?;
         self.samples.add(&stats);
         Ok(grads)
+    }
+
+    /// `tracer::Renderer::gradient_rows_with`: per pixel j, the sparse gradient of that pixel alone at unit
+    /// weight, reduced by `reduce(j, row)`, with this context's scene, cameras, settings and seed; the work is
+    /// counted in `samples`.
+    pub fn gradient_rows<T: Send>(
+        &self,
+        params: &tracer::Params,
+        pixels: &[PixelRef],
+        spp: u32,
+        key: u64,
+        reduce: impl Fn(usize, tracer::SparseGrads) -> T + Sync,
+    ) -> Result<Vec<T>, TracerError> {
+        let r = tracer::Renderer::new(self.scene, params, self.settings)?;
+        let ones = vec![glam::Vec3::ONE; pixels.len()];
+        let (rows, stats) = r.gradient_rows_with(self.cameras, pixels, &ones, spp, self.seed, key, reduce)?;
+        self.samples.add(&stats);
+        Ok(rows)
     }
 
     /// `tracer::Renderer::gradient_pixels_weighted`: one gradient per weighting, all from the same paths

@@ -4,7 +4,6 @@
 //! [`crate::triangle`].
 
 use glam::{DVec3, Vec3};
-use rayon::prelude::*;
 use tracer::PixelRef;
 
 use super::pixels::TriSample;
@@ -110,23 +109,26 @@ fn solve_light(
     let ctx = Ctx { scene, cameras: inputs.cameras, settings: inputs.tracer, seed: cfg.seed, samples: &counter };
     let params = state.params();
     let spp = s.solve_spp.max(1);
-    // Per pixel: the emitters' and the scales' Jacobian entries, reduced from the per-triangle gradient at once
-    // (a row over every triangle would hold pixels × triangles values).
+    // Per pixel: the emitters' and the scales' Jacobian entries, reduced from the pixel's sparse per-triangle
+    // gradient (the triangles its paths touched, in ascending order): a dense table over every triangle per
+    // pixel, cleared and read whole, was most of a house's light step (docs/scale/README.md, "Per-pixel
+    // gradients at house scale").
     let rows = |key: u64| -> Result<Vec<LightRow>, TriangleError> {
-        pix.par_iter()
-            .map(|p| {
-                let g = ctx.gradient(&params, std::slice::from_ref(p), &[Vec3::ONE], spp, key)?;
-                let e: Vec<[f64; 3]> = emitters.iter().map(|&o| g.emission[o].to_array()).collect();
-                let mut x = vec![DVec3::ZERO; scaled.len()];
-                for (t, m) in g.materials.iter().enumerate() {
-                    let i = slot[state.face_object[t] as usize];
-                    if free[t] && i != usize::MAX {
-                        x[i] += state.materials[t].base_color.as_dvec3() * m.base_color;
-                    }
+        Ok(ctx.gradient_rows(&params, &pix, spp, key, |_, g| {
+            let emission_of = |o: usize| {
+                g.emission.binary_search_by_key(&(o as u32), |&(k, _)| k).map_or(DVec3::ZERO, |i| g.emission[i].1)
+            };
+            let e: Vec<[f64; 3]> = emitters.iter().map(|&o| emission_of(o).to_array()).collect();
+            let mut x = vec![DVec3::ZERO; scaled.len()];
+            for &(t, ref m) in &g.materials {
+                let t = t as usize;
+                let i = slot[state.face_object[t] as usize];
+                if free[t] && i != usize::MAX {
+                    x[i] += state.materials[t].base_color.as_dvec3() * m.base_color;
                 }
-                Ok((e, x.iter().map(|v| v.to_array()).collect()))
-            })
-            .collect()
+            }
+            (e, x.iter().map(|v| v.to_array()).collect())
+        })?)
     };
     let columns = |r: &[LightRow]| -> (Vec<Column>, Vec<Column>) {
         let e = (0..emitters.len()).map(|k| r.iter().map(|row| row.0[k]).collect()).collect();
