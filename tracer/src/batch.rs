@@ -256,7 +256,7 @@ impl<'a> Renderer<'a> {
         seed: u64,
         iteration: u64,
     ) -> Result<(Vec<Grads>, TraceStats), TracerError> {
-        let per_pixel = self.pixel_entries(cameras, pixels, weight_sets, spp_grad, seed, iteration, |_, e| e)?;
+        let per_pixel = self.pixel_entries(cameras, pixels, weight_sets, spp_grad, seed, iteration, |e| e)?;
         let mut grads = vec![Grads::zeros_like(self.params); weight_sets.len()];
         for (e, ..) in &per_pixel {
             for (g, e) in grads.iter_mut().zip(e) {
@@ -268,26 +268,12 @@ impl<'a> Renderer<'a> {
 
     /// Per pixel j, [`Renderer::gradient_pixels`] of pixel j alone with weight `weights[j]`, as the sparse
     /// list of the parameters its paths touched ([`SparseGrads`]: every value bit for bit the dense table's),
-    /// and the work done. A Jacobian row per pixel: a dense table per pixel holds every material slot, which
-    /// with a slot per triangle (a house's 521 k) is 25 MB to clear and read for each pixel, where its paths
-    /// touch a few hundred.
-    pub fn gradient_rows(
-        &self,
-        cameras: &[Camera],
-        pixels: &[PixelRef],
-        weights: &[Vec3],
-        spp_grad: u32,
-        seed: u64,
-        iteration: u64,
-    ) -> Result<(Vec<SparseGrads>, TraceStats), TracerError> {
-        self.gradient_rows_with(cameras, pixels, weights, spp_grad, seed, iteration, |_, row| row)
-    }
-
-    /// [`Renderer::gradient_rows`] with each pixel's row reduced by `reduce(j, row)` as soon as it is
-    /// estimated, so that only the reductions are held (a row over a house's triangles holds up to thousands
-    /// of entries).
+    /// passed to `reduce` as soon as it is estimated, so that only the reductions are held; and the work
+    /// done. A Jacobian row per pixel: a dense table per pixel holds every material slot, which with a slot per
+    /// triangle (a house's 521 k) is 25 MB to clear and read for each pixel, where its paths touch a few
+    /// hundred.
     #[allow(clippy::too_many_arguments)]
-    pub fn gradient_rows_with<T: Send>(
+    pub fn gradient_rows<T: Send>(
         &self,
         cameras: &[Camera],
         pixels: &[PixelRef],
@@ -295,17 +281,17 @@ impl<'a> Renderer<'a> {
         spp_grad: u32,
         seed: u64,
         iteration: u64,
-        reduce: impl Fn(usize, SparseGrads) -> T + Sync,
+        reduce: impl Fn(SparseGrads) -> T + Sync,
     ) -> Result<(Vec<T>, TraceStats), TracerError> {
-        let per_pixel = self.pixel_entries(cameras, pixels, &[weights], spp_grad, seed, iteration, |j, e| {
-            reduce(j, e.first().map_or_else(SparseGrads::default, |e| sparse(e)))
+        let per_pixel = self.pixel_entries(cameras, pixels, &[weights], spp_grad, seed, iteration, |e| {
+            reduce(e.first().map_or_else(SparseGrads::default, |e| sparse(e)))
         })?;
         let stats = gradient_stats(&per_pixel);
         Ok((per_pixel.into_iter().map(|p| p.0).collect(), stats))
     }
 
     /// Every pixel's gradient entries per weighting (validated as [`Renderer::gradient_pixels_weighted`]
-    /// documents), reduced by `reduce(j, entries)`, with its ray counts, paths and discarded paths.
+    /// documents), reduced by `reduce`, with its ray counts, paths and discarded paths.
     #[allow(clippy::too_many_arguments)]
     fn pixel_entries<T: Send>(
         &self,
@@ -315,7 +301,7 @@ impl<'a> Renderer<'a> {
         spp_grad: u32,
         seed: u64,
         iteration: u64,
-        reduce: impl Fn(usize, Vec<Vec<GradEntry>>) -> T + Sync,
+        reduce: impl Fn(Vec<Vec<GradEntry>>) -> T + Sync,
     ) -> Result<Vec<PixelGrads<T>>, TracerError> {
         check_pixels(cameras, pixels, spp_grad)?;
         for weights in weight_sets {
@@ -357,7 +343,7 @@ impl<'a> Renderer<'a> {
                         .map(|w| Some(w[j]).filter(|&w| w != Vec3::ZERO).map(|w| w / spp_grad as f32))
                         .collect();
                     if ws.iter().all(Option::is_none) {
-                        return (reduce(j, entries), rays, 0, 0);
+                        return (reduce(entries), rays, 0, 0);
                     }
                     for s in 0..spp_grad {
                         let rng = PathSampler::new(seed, Stream::Gradient, iteration, key(p), s);
@@ -378,7 +364,7 @@ impl<'a> Renderer<'a> {
                         }
                         discarded += u64::from(dropped);
                     }
-                    (reduce(j, entries), rays, u64::from(spp_grad), discarded)
+                    (reduce(entries), rays, u64::from(spp_grad), discarded)
                 },
             )
             .collect();
@@ -414,10 +400,7 @@ pub struct SparseGrads {
 fn sparse(entries: &[GradEntry]) -> SparseGrads {
     let mut order: Vec<usize> = (0..entries.len()).collect();
     // Stable: a parameter's entries keep their order.
-    order.sort_by_key(|&i| match entries[i] {
-        GradEntry::Material(t, _) => (0u8, t),
-        GradEntry::Emission(k, _) => (1u8, k),
-    });
+    order.sort_by_key(|&i| entries[i].param());
     let mut out = SparseGrads::default();
     for i in order {
         match entries[i] {

@@ -510,6 +510,16 @@ pub(crate) enum GradEntry {
     Emission(u32, DVec3),
 }
 
+impl GradEntry {
+    /// The parameter the entry is for: (kind, slot), materials (0) before emissions (1).
+    pub(crate) fn param(&self) -> (u8, u32) {
+        match *self {
+            GradEntry::Material(i, _) => (0, i),
+            GradEntry::Emission(i, _) => (1, i),
+        }
+    }
+}
+
 /// The backward pass over a recorded path: adds `∂(w·L)/∂θ` for every parameter it touched to `out`
 /// (merged with a recent entry of the same parameter, else appended).
 pub(crate) fn backward(path: &[Vertex], w: Vec3, out: &mut Vec<GradEntry>) {
@@ -603,10 +613,8 @@ impl EntryIndex {
     }
 
     fn key(e: &GradEntry) -> u64 {
-        match *e {
-            GradEntry::Material(i, _) => u64::from(i) << 1,
-            GradEntry::Emission(i, _) => (u64::from(i) << 1) | 1,
-        }
+        let (kind, slot) = e.param();
+        (u64::from(slot) << 1) | u64::from(kind)
     }
 
     /// The bucket holding `key`, or the free one where it goes (linear probing from a Fibonacci hash).

@@ -108,7 +108,7 @@ fn gradient_rows_match_each_pixel_alone() {
     let weights: Vec<Vec3> =
         (0..256).map(|j| if j % 5 == 0 { Vec3::ZERO } else { Vec3::new(1.0, 0.5 + j as f32 / 256.0, -0.25) }).collect();
     let renderer = Renderer::new(&scene, &params, &settings).expect("renderer");
-    let (rows, stats) = renderer.gradient_rows(&[cam], &pixels, &weights, 4, 3, 17).expect("rows");
+    let (rows, stats) = renderer.gradient_rows(&[cam], &pixels, &weights, 4, 3, 17, |row| row).expect("rows");
     assert_eq!(rows.len(), pixels.len());
     let mut touched = 0;
     for ((row, p), w) in rows.iter().zip(&pixels).zip(&weights) {

@@ -95,7 +95,7 @@ pub fn base_color_columns_of(
     iteration_key: u64,
     wanted: &[bool],
 ) -> Result<Vec<SparseColumn>, TracerError> {
-    let rows: Vec<SparseColumn> = ctx.gradient_rows(params, pixels, spp, iteration_key, |_, g| {
+    let rows: Vec<SparseColumn> = ctx.gradient_rows(params, pixels, spp, iteration_key, |g| {
         g.materials
             .iter()
             .filter(|(k, m)| wanted.get(*k as usize).copied().unwrap_or(false) && m.base_color != glam::DVec3::ZERO)
@@ -154,20 +154,20 @@ impl Ctx<'_> {
         Ok(grads)
     }
 
-    /// `tracer::Renderer::gradient_rows_with`: per pixel j, the sparse gradient of that pixel alone at unit
-    /// weight, reduced by `reduce(j, row)`, with this context's scene, cameras, settings and seed; the work is
-    /// counted in `samples`.
+    /// `tracer::Renderer::gradient_rows`: per pixel, the sparse gradient of that pixel alone at unit weight,
+    /// reduced by `reduce`, with this context's scene, cameras, settings and seed; the work is counted in
+    /// `samples`.
     pub fn gradient_rows<T: Send>(
         &self,
         params: &tracer::Params,
         pixels: &[PixelRef],
         spp: u32,
         key: u64,
-        reduce: impl Fn(usize, tracer::SparseGrads) -> T + Sync,
+        reduce: impl Fn(tracer::SparseGrads) -> T + Sync,
     ) -> Result<Vec<T>, TracerError> {
         let r = tracer::Renderer::new(self.scene, params, self.settings)?;
         let ones = vec![glam::Vec3::ONE; pixels.len()];
-        let (rows, stats) = r.gradient_rows_with(self.cameras, pixels, &ones, spp, self.seed, key, reduce)?;
+        let (rows, stats) = r.gradient_rows(self.cameras, pixels, &ones, spp, self.seed, key, reduce)?;
         self.samples.add(&stats);
         Ok(rows)
     }

@@ -60,8 +60,8 @@ type Column = Vec<[f64; 3]>;
 /// to the objects' pixels, weighted so that the data term estimates the mean over all of them without bias),
 /// `object.solve_spp` paths per entry — the object stage's solve size. Drawn uniformly instead, the 1024 pixels
 /// of a 213-object house gave each seen lamp 0.03–0.7 rows on average (it covers 0.003–0.06 % of the photos),
-/// and the averaged steps took a seen lamp to 4× its emission and an unseen one to 245× in one channel. Every other object's emission stays 0. Keyed by (seed,
-/// round, pass).
+/// and the averaged steps took a seen lamp to 4× its emission and an unseen one to 245× in one channel. Every
+/// other object's emission stays 0. Keyed by (seed, round, pass).
 #[allow(clippy::too_many_arguments)]
 fn solve_light(
     inputs: &RoundInputs<'_>,
@@ -114,7 +114,7 @@ fn solve_light(
     // pixel, cleared and read whole, was most of a house's light step (docs/scale/README.md, "Per-pixel
     // gradients at house scale").
     let rows = |key: u64| -> Result<Vec<LightRow>, TriangleError> {
-        Ok(ctx.gradient_rows(&params, &pix, spp, key, |_, g| {
+        Ok(ctx.gradient_rows(&params, &pix, spp, key, |g| {
             let emission_of = |o: usize| {
                 g.emission.binary_search_by_key(&(o as u32), |&(k, _)| k).map_or(DVec3::ZERO, |i| g.emission[i].1)
             };
@@ -261,8 +261,8 @@ pub fn light_change_p(start: &[DVec3], steps: &[Vec<DVec3>]) -> f64 {
 /// averaged light is tested against the light it started from ([`light_change_p`] at [`LIGHT_SIGNIFICANCE`]);
 /// without a significant change the cycle is undone (emission and materials as the round's fit left them) and
 /// the rest skipped: `Ok(None)`. After each cycle's ratio pass the re-solved state must fit the photos no worse
-/// than the round's fit ([`fits_worse`]), else it is undone likewise. Returns the last pass's [`Fitted`] (losses of all passes); without emitters,
-/// or with `fit_steps` = 0, nothing to do: `Ok(None)`.
+/// than the round's fit ([`fits_worse`]), else it is undone likewise. Returns the last pass's [`Fitted`]
+/// (losses of all passes); without emitters, or with `fit_steps` = 0, nothing to do: `Ok(None)`.
 pub fn refine_light(
     inputs: &RoundInputs<'_>,
     scene: &tracer::Scene,
