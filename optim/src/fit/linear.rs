@@ -352,6 +352,19 @@ pub fn mean_se(d: &[f64]) -> (f64, f64) {
     (mean, (var / n).sqrt())
 }
 
+/// The median of `v` (reordered; NaN sorts last): the mean of the two middle values for an even count, 0 for
+/// none.
+#[must_use]
+pub fn median(v: &mut [f64]) -> f64 {
+    v.sort_unstable_by(f64::total_cmp);
+    let n = v.len();
+    match n {
+        0 => 0.0,
+        _ if n % 2 == 1 => v[n / 2],
+        _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

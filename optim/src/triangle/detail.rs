@@ -25,10 +25,21 @@
 //!    divided by ρ_t, and smoothed per triangle and channel by a least-squares quadratic in (u, v) (linear,
 //!    then constant, when the pixels do not span the quadratic): the fit removes the render's Monte Carlo
 //!    noise, which would otherwise become texture.
-//! 4. **Texels**: ρ_k = (Σ_(s∈k) T_s + κ ρ_t Ŝ_k) / (Σ_(s∈k) Ŝ(u_s, v_s) + κ Ŝ_k) with κ = [`PRIOR_PIXELS`]:
-//!    the ratio estimate of the texel's albedo from the photo values T_s of its pixels, with one pseudo-pixel
-//!    at the triangle's value, so that a texel seen by few pixels leans towards ρ_t and a texel no pixel
-//!    sees takes it. Clamped to [0, 1].
+//! 4. **Texels**: each pixel gives an albedo sample a_s = T_s / Ŝ(u_s, v_s) from its photo value T_s,
+//!    capped at an albedo of 1 plus [`CLIP_SIGMAS`] standard deviations of the samples' noise (a robust
+//!    scale from pairs of samples in the same texel): Monte Carlo renders, the corpus's photos, carry
+//!    fireflies, single pixels many times too bright, which a texel of one to three pixels cannot average
+//!    away, while no albedo exceeds 1. The texels are then
+//!    shrunk towards the triangle: ρ_k = ρ_t + m_k / (m_k + κ) · (ā_k − ā), with ā_k the mean of texel k's
+//!    m_k samples and ā the triangle's, and κ = σ² / τ² the ratio of the samples' within-texel variance σ²
+//!    to the variance τ² of the texels' true albedos, both estimated from the samples grouped by texel (the
+//!    one-way random-effects ANOVA, [`super::split::Anova::between_variance`]). This is the empirical-Bayes
+//!    estimate, which minimises the expected squared error for normally spread texel albedos: a texel keeps
+//!    its own mean where the texture's spread dwarfs a texel's noise, and leans towards ρ_t where it does
+//!    not. A texel no pixel sees, and every texel of a channel whose texels vary no more than their noise
+//!    predicts (τ² = 0) or that has no texel of two pixels (no σ²), takes ρ_t. Clamped to [0, 1]. A fixed
+//!    weight of one pseudo-pixel at ρ_t instead painted the noise of the 160×128 house's photos into its
+//!    plain walls (`docs/realistic/README.md`, "Texels shrunk by their noise").
 //!
 //! 5. **Only where the photos call for it**: per triangle, a one-way ANOVA of the pixels' residuals
 //!    photo − render (T_s − R_s, the render unsmoothed) grouped by texel (per channel, ×3 Bonferroni), Holm
@@ -50,7 +61,7 @@ use super::pixels::{self, TriSample};
 use super::significance::holm;
 use super::split::anova;
 use super::{TriangleError, TriangleState};
-use crate::fit::linear::solve_spd;
+use crate::fit::linear::{median, solve_spd};
 use crate::streams::key;
 
 /// Pixels kept per texel: a texel's ratio estimate averages the photos' noise over up to this many pixels;
@@ -59,9 +70,6 @@ pub const SAMPLES_PER_TEXEL: usize = 64;
 
 /// Largest cells per triangle edge: 254 leaves a 1-texel border inside a 256-texel atlas cell.
 pub const MAX_CELLS: u32 = 254;
-
-/// Pseudo-pixels at the triangle's own value in every texel's estimate (step 4 of the module docs).
-pub const PRIOR_PIXELS: f64 = 1.0;
 
 /// Below this base colour a channel's shading (render / ρ) is not measurable (a channel ρ = 0 renders 0 in
 /// every pixel); the channel keeps the triangle's value.
@@ -76,6 +84,16 @@ const MIN_LINEAR: usize = 12;
 /// extrapolated into a corner no pixel saw can reach 0 or below, and a division by it would blow the texel
 /// up; real shading on one triangle (the light integrated over a hemisphere) does not fall that far.
 const MIN_SHADING_FRACTION: f64 = 0.05;
+
+/// σ of a normal distribution per median absolute deviation: 1 / Φ⁻¹(3/4).
+const MAD_TO_SIGMA: f64 = 1.482_602_218_505_602;
+
+/// A pixel's albedo sample is capped at 1 (no surface reflects more than it receives) plus this many standard
+/// deviations of the samples' noise (step 4): noise lifts a sample of a white surface past the cap in 0.13 %
+/// of pixels, so the cap barely biases a texel, while a firefly (tens of σ) is cut to it. Any texture, however
+/// bright, sparse or noise-free, lies below it, where a cap relative to the triangle's median (median + 3
+/// robust σ) cut a noise-free stripe covering a quarter of a triangle down to the median.
+const CLIP_SIGMAS: f64 = 3.0;
 
 /// Family-wise level of the per-triangle test that keeps a grid: the probability that any triangle whose
 /// texels differ only by noise gets one is at most this (the split test's level, `triangle.split_significance`
@@ -275,10 +293,8 @@ fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> (TexelGr
     let nn = n as usize;
     let points: Vec<Vec2> = samples.iter().map(|(s, _)| s.bary).collect();
     let mut grid = TexelGrid { n, texels: vec![base; nn * nn] };
-    // A cell's centre, pulled into the triangle for the cells its diagonal cuts or that lie beyond it.
-    let centre =
-        |i: usize, j: usize| into_triangle(Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32));
     let mut p_min = 1.0f64;
+    let mut varies = false;
     for c in 0..3 {
         if base[c] < MIN_BASE {
             continue;
@@ -298,31 +314,51 @@ fn triangle_grid(n: u32, base: Vec3, samples: &[(&TriSample, Vec3)]) -> (TexelGr
             let f = basis(b);
             coef.iter().zip(f).map(|(a, x)| a * x).sum::<f64>().max(floor)
         };
-        let mut num = vec![0.0f64; nn * nn];
-        let mut den = vec![0.0f64; nn * nn];
-        // Step 5's residuals photo − render, the render unsmoothed: it carries every structure the model
-        // explains (shadow edges, light pools, the shading's falloff), so that structure cancels whatever its
-        // shape, where the smoothed Ŝ would leave its sharp parts; what remains differs between texels only
-        // through albedo structure within the triangle, or noise (the photo's and the render's, both in the
-        // within-texel variance).
+        // Per texel, the pixels' albedo samples T_s / Ŝ(u_s, v_s) (step 4), and step 5's residuals photo −
+        // render, the render unsmoothed: it carries every structure the model explains (shadow edges, light
+        // pools, the shading's falloff), so that structure cancels whatever its shape, where the smoothed Ŝ
+        // would leave its sharp parts; what remains differs between texels only through albedo structure
+        // within the triangle, or noise (the photo's and the render's, both in the within-texel variance).
+        let mut albedo: Vec<Vec<f64>> = vec![Vec::new(); nn * nn];
         let mut residuals: Vec<Vec<f64>> = vec![Vec::new(); nn * nn];
         for (s, r) in samples {
             let (i, j) = grid.cell(s.bary);
-            num[i * nn + j] += f64::from(s.target[c]);
-            den[i * nn + j] += eval(s.bary);
+            albedo[i * nn + j].push(f64::from(s.target[c]) / eval(s.bary));
             residuals[i * nn + j].push(f64::from(s.target[c]) - f64::from(r[c]));
         }
         if let Some(a) = anova(&residuals) {
             p_min = p_min.min(a.p_value());
         }
-        for i in 0..nn {
-            for j in 0..nn {
-                let sk = eval(centre(i, j));
-                let prior = PRIOR_PIXELS * sk;
-                let value = (num[i * nn + j] + prior * f64::from(base[c])) / (den[i * nn + j] + prior);
-                grid.texels[i * nn + j][c] = if value.is_finite() { value.clamp(0.0, 1.0) as f32 } else { base[c] };
-            }
+        // Step 4's cap on fireflies: an albedo of 1 plus CLIP_SIGMAS of the samples' noise, whose scale comes
+        // from pairs of samples in the same texel (their difference is noise alone, with variance 2σ²).
+        let mut pairs: Vec<f64> = albedo.iter().flat_map(|v| v.chunks_exact(2).map(|p| (p[0] - p[1]).abs())).collect();
+        if pairs.is_empty() {
+            continue;
         }
+        let sigma = MAD_TO_SIGMA * median(&mut pairs) / std::f64::consts::SQRT_2;
+        let cap = 1.0 + CLIP_SIGMAS * sigma;
+        albedo.iter_mut().flatten().for_each(|v| *v = v.min(cap));
+        // Without a within-texel variance (fewer pixels than texels plus one) noise cannot be told from texture:
+        // the channel keeps the triangle's value.
+        let Some(spread) = anova(&albedo) else { continue };
+        let tau2 = spread.between_variance();
+        if !(tau2 > 0.0 && spread.ms_within.is_finite()) {
+            continue;
+        }
+        varies = true;
+        let kappa = spread.ms_within / tau2;
+        let n_all: usize = albedo.iter().map(Vec::len).sum();
+        let level = albedo.iter().flatten().sum::<f64>() / n_all as f64;
+        for (k, values) in albedo.iter().enumerate().filter(|(_, v)| !v.is_empty()) {
+            let m = values.len() as f64;
+            let texel = values.iter().sum::<f64>() / m;
+            let value = f64::from(base[c]) + m / (m + kappa) * (texel - level);
+            grid.texels[k][c] = if value.is_finite() { value.clamp(0.0, 1.0) as f32 } else { base[c] };
+        }
+    }
+    if !varies {
+        // Every channel kept the triangle's value: a grid would only repeat it.
+        p_min = 1.0;
     }
     // Cells beyond the diagonal (no pixel centre lies there) take the value of the inside cell nearest to them.
     for i in 0..nn {
@@ -438,11 +474,117 @@ mod tests {
         let g = TexelGrid { n: 4, texels: (0..16).map(|k| Vec3::splat(k as f32)).collect() };
         assert_eq!(g.cell(Vec2::new(1.0, 0.0)), (3, 0));
         assert_eq!(g.cell(Vec2::new(-0.5, f32::NAN)), (0, 0));
-        // One pixel in one corner: the other texels keep the base colour.
-        let s = sample(0.05, 0.05, Vec3::splat(0.3));
-        let (g, _) = triangle_grid(4, Vec3::splat(0.6), &[(&s, Vec3::splat(0.6))]);
-        assert_eq!(g.at(Vec2::new(0.6, 0.2)), Vec3::splat(0.6));
-        // The seen texel: (0.3 + 0.6)/(1 + 1) with a constant shading of 1.
-        assert!((g.at(Vec2::new(0.05, 0.05)).x - 0.45).abs() < 1e-6);
+        // One pixel in one corner, another in a second texel: no texel holds two pixels, so nothing tells
+        // texture from noise, and every texel keeps the base colour.
+        let a = sample(0.05, 0.05, Vec3::splat(0.3));
+        let b = sample(0.6, 0.2, Vec3::splat(0.9));
+        let (g, p) = triangle_grid(4, Vec3::splat(0.6), &[(&a, Vec3::splat(0.6)), (&b, Vec3::splat(0.6))]);
+        assert!(g.texels.iter().all(|&t| t == Vec3::splat(0.6)), "{:?}", g.texels);
+        assert_eq!(p, 1.0);
+        // Two texels of two pixels each, 0.3 and 0.9 with a spread of ±0.01 within each: clear texture, and
+        // the texels keep their means almost fully (shrunk by m / (m + σ²/τ²), σ²/τ² ≈ 1e-3).
+        let pts = [(0.05, 0.05, 0.29), (0.06, 0.04, 0.31), (0.6, 0.2, 0.89), (0.61, 0.21, 0.91)];
+        let s: Vec<TriSample> = pts.iter().map(|&(u, v, t)| sample(u, v, Vec3::splat(t))).collect();
+        let refs: Vec<(&TriSample, Vec3)> = s.iter().map(|s| (s, Vec3::splat(0.6))).collect();
+        let (g, _) = triangle_grid(4, Vec3::splat(0.6), &refs);
+        assert!((g.at(Vec2::new(0.05, 0.05)).x - 0.3).abs() < 1e-3, "{}", g.at(Vec2::new(0.05, 0.05)));
+        assert!((g.at(Vec2::new(0.6, 0.2)).x - 0.9).abs() < 1e-3, "{}", g.at(Vec2::new(0.6, 0.2)));
+        // A texel no pixel sees keeps the triangle's value.
+        assert_eq!(g.at(Vec2::new(0.3, 0.6)), Vec3::splat(0.6));
+    }
+
+    /// Pixels on a lattice of `res` points per edge over the triangle, with photo = albedo(u) · shading ·
+    /// (1 + `noise_level` · noise) and render = ρ_t · shading, ρ_t the true mean albedo (noise-free: the
+    /// render's noise is not what this tests); returns per cell with pixels of a grid of `n` cells per edge
+    /// (channel 0): the texel, the cell's true mean albedo and the plain mean of its pixels' albedos; and
+    /// the triangle's p-value.
+    fn noisy_grid(n: u32, res: usize, albedo: &dyn Fn(f32) -> f32, noise_level: f32) -> (Vec<(f32, f32, f32)>, f64) {
+        noisy_grid_with(n, res, albedo, &|k| 1.0 + noise_level * noise(k))
+    }
+
+    /// [`noisy_grid`] with the photo's noise factor per pixel index given by `factor`.
+    fn noisy_grid_with(
+        n: u32,
+        res: usize,
+        albedo: &dyn Fn(f32) -> f32,
+        factor: &dyn Fn(u64) -> f32,
+    ) -> (Vec<(f32, f32, f32)>, f64) {
+        let shade = |u: f32, v: f32| 1.5 + 0.5 * u - 0.3 * v;
+        let mut pts = Vec::new();
+        for a in 0..res {
+            for b in 0..res - a {
+                pts.push(((a as f32 + 0.5) / res as f32, (b as f32 + 0.5) / res as f32));
+            }
+        }
+        let base = pts.iter().map(|&(u, _)| albedo(u)).sum::<f32>() / pts.len() as f32;
+        let mut data = Vec::new();
+        for &(u, v) in &pts {
+            let k = data.len() as u64;
+            let photo = albedo(u) * shade(u, v) * factor(k);
+            data.push((sample(u, v, Vec3::splat(photo)), Vec3::splat(base * shade(u, v))));
+        }
+        let refs: Vec<(&TriSample, Vec3)> = data.iter().map(|(s, r)| (s, *r)).collect();
+        let (g, p) = triangle_grid(n, Vec3::splat(base), &refs);
+        let mut cells: std::collections::BTreeMap<(usize, usize), (f32, f32, usize)> = Default::default();
+        for (s, _) in &data {
+            let e = cells.entry(g.cell(s.bary)).or_insert((0.0, 0.0, 0));
+            e.0 += s.target.x / shade(s.bary.x, s.bary.y);
+            e.1 += albedo(s.bary.x);
+            e.2 += 1;
+        }
+        let out = cells
+            .iter()
+            .map(|(&(i, j), &(raw, truth, m))| (g.texels[i * n as usize + j].x, truth / m as f32, raw / m as f32))
+            .collect();
+        (out, p)
+    }
+
+    fn rms(v: impl Iterator<Item = f32>) -> f32 {
+        let (s, n) = v.fold((0.0, 0), |(s, n), x| (s + x * x, n + 1));
+        (s / n as f32).sqrt()
+    }
+
+    #[test]
+    fn photo_noise_on_a_uniform_albedo_is_not_painted_into_the_texels() {
+        // Albedo 0.5 everywhere, photos with ±30 % uniform noise (17 % standard deviation), ~4 pixels per texel:
+        // the texels' plain means scatter by ~0.04, which the old fixed one-pixel prior left in the albedo. The
+        // between-texel variance estimated on the triangle is ~0, so the texels stay at the base colour.
+        let (cells, _) = noisy_grid(32, 64, &|_| 0.5, 0.3);
+        let raw = rms(cells.iter().map(|&(_, t, r)| r - t));
+        let got = rms(cells.iter().map(|&(g, t, _)| g - t));
+        assert!(raw > 0.03, "the test's noise is real: {raw}");
+        assert!(got < raw / 4.0, "texel error {got} against the plain means' {raw}");
+    }
+
+    #[test]
+    fn fireflies_are_capped_before_they_reach_a_texel() {
+        // A uniform albedo 0.5 under ±5 % noise, one pixel in 40 a firefly 30× too bright (a Monte Carlo
+        // photo's): with ~4 pixels per texel a firefly lifts its texel's plain mean by ~3.6, which no shrinkage
+        // weight estimated from such samples undoes; capped at 1 + 3σ, the texels stay near 0.5.
+        let factor = |k: u64| if k % 40 == 17 { 30.0 } else { 1.0 + 0.05 * noise(k) };
+        let (cells, _) = noisy_grid_with(32, 64, &|_| 0.5, &factor);
+        let raw = rms(cells.iter().map(|&(_, t, r)| r - t));
+        let got = rms(cells.iter().map(|&(g, t, _)| g - t));
+        assert!(raw > 0.5, "the fireflies are in the plain means: {raw}");
+        assert!(got < 0.02, "texel error {got}");
+    }
+
+    #[test]
+    fn a_noisy_stripe_pattern_keeps_its_contrast() {
+        // Stripes of 0.2 and 0.8, 4 cells wide, under the same ±30 % noise: the between-texel variance (0.09)
+        // dwarfs a texel mean's noise, so the texels keep their stripes: shrunk by m / (m + σ²/τ²) ≈ 0.98 towards
+        // the triangle's mean, they are as close to the truth as the plain means (the shrinkage is optimal for
+        // normally spread texel albedos; for two stripe values it trades a little bias for the noise it removes).
+        let albedo = |u: f32| if (u * 8.0) as u32 % 2 == 0 { 0.2 } else { 0.8 };
+        let (cells, p) = noisy_grid(32, 64, &albedo, 0.3);
+        assert!(p < 1e-6, "stripes are structure: p = {p}");
+        let raw = rms(cells.iter().map(|&(_, t, r)| r - t));
+        let got = rms(cells.iter().map(|&(g, t, _)| g - t));
+        assert!(got < 1.05 * raw, "texel error {got} against the plain means' {raw}");
+        let contrast = |hi: bool| {
+            let v: Vec<f32> = cells.iter().filter(|c| (c.1 > 0.5) == hi).map(|c| c.0).collect();
+            v.iter().sum::<f32>() / v.len() as f32
+        };
+        assert!(contrast(true) - contrast(false) > 0.5, "{} vs {}", contrast(true), contrast(false));
     }
 }

@@ -22,7 +22,8 @@ const MIN_EDGE_RELATIVE: f32 = 1e-6;
 /// the correlation between the channels (their noise comes from the same paths, so it is correlated).
 const CHANNELS: f64 = 3.0;
 
-/// A one-way ANOVA: the F statistic and its degrees of freedom (between groups, within groups).
+/// A one-way ANOVA: the F statistic and its degrees of freedom (between groups, within groups), with the
+/// mean squares and the effective group size behind them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Anova {
     pub f: f64,
@@ -30,6 +31,13 @@ pub struct Anova {
     pub df_between: usize,
     /// n − k for n values.
     pub df_within: usize,
+    /// Σ_g n_g (mean_g − mean)² / (k − 1).
+    pub ms_between: f64,
+    /// Σ_g Σ (x − mean_g)² / (n − k): the pooled variance of a value about its group's mean.
+    pub ms_within: f64,
+    /// (n − Σ_g n_g² / n) / (k − 1): the group size that makes `ms_between`'s expectation
+    /// `ms_within + n0 · τ²` for groups whose true means spread with variance τ² (n_g for equal groups).
+    pub n0: f64,
 }
 
 impl Anova {
@@ -38,6 +46,14 @@ impl Anova {
     #[must_use]
     pub fn p_value(&self) -> f64 {
         f_survival(self.f, self.df_between as f64, self.df_within as f64)
+    }
+
+    /// The variance τ² of the groups' true means, by the method of moments of the one-way random-effects
+    /// model: (`ms_between` − `ms_within`) / `n0`, at least 0 (a between-group spread no larger than the
+    /// values' own noise predicts is no spread).
+    #[must_use]
+    pub fn between_variance(&self) -> f64 {
+        if self.n0 > 0.0 { ((self.ms_between - self.ms_within) / self.n0).max(0.0) } else { 0.0 }
     }
 }
 
@@ -69,7 +85,8 @@ pub fn anova(groups: &[Vec<f64>]) -> Option<Anova> {
     } else {
         0.0
     };
-    Some(Anova { f, df_between: k - 1, df_within: n - k })
+    let n0 = (n as f64 - used.iter().map(|g| (g.len() * g.len()) as f64).sum::<f64>() / n as f64) / (k - 1) as f64;
+    Some(Anova { f, df_between: k - 1, df_within: n - k, ms_between, ms_within, n0 })
 }
 
 /// The ANOVA F statistic of `groups` alone ([`anova`]).
