@@ -206,6 +206,10 @@ pub enum FitError {
     Checkpoint(String),
     #[error("fit: interrupted after step {iteration}; its checkpoint is written")]
     Interrupted { iteration: u32 },
+    /// Stopped on request within model selection, which keeps no checkpoint of its own: a rerun resumes from
+    /// the checkpoint of the fit's last step.
+    #[error("fit: stopped during model selection; a rerun resumes from the checkpoint of the last fit step")]
+    Stopped(#[from] crate::progress::Stopped),
     #[error("fit: non-finite {what} at step {iteration}")]
     NonFinite { what: &'static str, iteration: u32 },
     #[error(

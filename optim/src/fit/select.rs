@@ -17,6 +17,7 @@ use super::solve::{self, solve_options, solve_samples};
 use super::step_check;
 use super::{FitError, ObjectFitSettings, ObjectModel};
 use crate::blocks::RENDER_BLOCK;
+use crate::progress::check_stop;
 use crate::streams::{self, draw, key};
 use tracer::PixelRef;
 
@@ -73,6 +74,7 @@ impl AveragedSteps {
         let mut sum = vec![0.0; x.len()];
         let mut n_avg = 0.0;
         for step in 1..=self.steps {
+            check_stop(progress)?;
             let key = self.key + u64::from(step);
             let samples = solve_samples(sets, s, ctx.seed, key);
             let start = x.to_vec();
@@ -164,6 +166,7 @@ fn paired_renders(
     progress.phase(phase, 2 * blocks as u64, 0);
     let (mut out_a, mut out_b) = (Vec::with_capacity(pixels.len()), Vec::with_capacity(pixels.len()));
     for (i, block) in pixels.chunks(RENDER_BLOCK).enumerate() {
+        check_stop(progress)?;
         out_a.extend(ctx.render(a, block, spp, key)?);
         progress.set_position(2 * i as u64 + 1);
         out_b.extend(ctx.render(b, block, spp, key)?);
@@ -574,6 +577,7 @@ pub fn choose_models(
         let n_free = free.iter().filter(|&&f| f).count();
         progress.phase("model selection: lobe search, object", n_free as u64, 0);
         for (done, k) in (0..k_count).filter(|&k| free[k]).enumerate() {
+            check_stop(progress)?;
             let samples = profile_samples(ctx, sets, k);
             let mut base = x.clone();
             base[idx(k, SPECULAR)] = TRIAL_SPECULAR;
@@ -761,6 +765,7 @@ pub fn choose_models(
             continue;
         }
         progress.set_position(tested);
+        check_stop(progress)?;
         tested += 1;
         let lit = std::mem::take(&mut lit_of[k]);
         // The emitter's own pixels (where its emission is seen directly) and the others it lights, each drawn

@@ -292,6 +292,7 @@ pub fn refine_light(
         let mut averaged: Vec<Vec<DVec3>> = Vec::new();
         progress.phase(&format!("round {round}: light cycle {}, step", cycle + 1), LIGHT_STEPS as u64, 0);
         for i in 0..LIGHT_STEPS {
+            crate::progress::check_stop(progress)?;
             let pass = cycle * LIGHT_STEPS + i + 1;
             let scale = solve_light(inputs, scene, samples, &strata, state, &emitters, &free, round, pass, &mut work)?;
             progress.set_position(i as u64 + 1);

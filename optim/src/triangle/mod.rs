@@ -169,6 +169,10 @@ pub enum TriangleError {
     Checkpoint(String),
     #[error("triangle fit: interrupted after round {rounds_done}; its checkpoint is written")]
     Interrupted { rounds_done: u32 },
+    /// Stopped on request within a round: the round's work is dropped, and a rerun resumes from the checkpoint
+    /// of the last finished round.
+    #[error("triangle fit: stopped within a round; a rerun resumes from the last finished round's checkpoint")]
+    Stopped(#[from] crate::progress::Stopped),
     /// More than the object fit's bound ([`crate::fit::samples::MAX_DISCARDED_FRACTION`]) of a round's path
     /// samples were discarded as non-finite.
     #[error(
@@ -177,6 +181,15 @@ pub enum TriangleError {
         bound = crate::fit::samples::MAX_DISCARDED_FRACTION
     )]
     TooManyDiscarded { round: u32, discarded: u64, paths: u64 },
+}
+
+impl From<crate::blocks::BlockError> for TriangleError {
+    fn from(e: crate::blocks::BlockError) -> Self {
+        match e {
+            crate::blocks::BlockError::Tracer(e) => e.into(),
+            crate::blocks::BlockError::Stopped(s) => s.into(),
+        }
+    }
 }
 
 /// Settings of the per-triangle fit (the pipeline's `[triangle]` table, where each default is documented).
