@@ -3,8 +3,6 @@
 
 mod common;
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-
 use optim::fit::{FitError, FitOutcome, FitState, ObjectFitSettings};
 
 fn run(
@@ -61,7 +59,7 @@ fn same_seed_same_result_and_resume_equals_uninterrupted() {
     // A stop requested during model selection (one step into its first phase) ends the fit before any more
     // work, with the checkpoint of the last fit step as the last one written; resumed from it, the fit ends
     // where the uninterrupted run ends.
-    let stopping = StopInSelection::default();
+    let stopping = common::StopAfter::on_phase("model selection");
     let mut last: Option<FitState> = None;
     let objects = lab::synth::fit_objects(&built);
     let inputs = optim::fit::FitInputs {
@@ -84,8 +82,8 @@ fn same_seed_same_result_and_resume_equals_uninterrupted() {
     )
     .unwrap_err();
     assert!(matches!(err, FitError::Stopped(_)), "{err}");
-    assert!(stopping.answered.load(Ordering::SeqCst), "the stop was never asked for");
-    assert_eq!(stopping.after_stop.load(Ordering::SeqCst), 0, "work went on after the stop was requested");
+    assert!(stopping.asked(), "the stop was never asked for");
+    assert_eq!(stopping.positions_after_stop(), 0, "work went on after the stop was requested");
     let last = last.unwrap();
     assert_eq!(last.iteration, settings.iterations + settings.refine_steps, "the last checkpoint is the fit's end");
     let resumed = run(&built, &images, &settings, Some(last), None, &mut saved).unwrap();
@@ -95,37 +93,4 @@ fn same_seed_same_result_and_resume_equals_uninterrupted() {
     let other = ObjectFitSettings { seed: 1, ..settings };
     let c = run(&built, &images, &other, None, None, &mut saved).unwrap();
     assert_ne!(c.params, a.params, "the seed must matter");
-}
-
-/// Asks to stop once a model-selection phase has begun and reported one step; counts the positions reported
-/// after it first said so.
-#[derive(Default)]
-struct StopInSelection {
-    selecting: AtomicBool,
-    positions: AtomicU64,
-    answered: AtomicBool,
-    after_stop: AtomicU64,
-}
-
-impl optim::Progress for StopInSelection {
-    fn phase(&self, name: &str, _total: u64, done: u64) {
-        if name.starts_with("model selection") {
-            self.selecting.store(true, Ordering::SeqCst);
-        }
-        self.set_position(done);
-    }
-    fn set_position(&self, _: u64) {
-        if self.answered.load(Ordering::SeqCst) {
-            self.after_stop.fetch_add(1, Ordering::SeqCst);
-        } else if self.selecting.load(Ordering::SeqCst) {
-            self.positions.fetch_add(1, Ordering::SeqCst);
-        }
-    }
-    fn stop_requested(&self) -> bool {
-        let stop = self.selecting.load(Ordering::SeqCst) && self.positions.load(Ordering::SeqCst) >= 2;
-        if stop {
-            self.answered.store(true, Ordering::SeqCst);
-        }
-        stop
-    }
 }

@@ -7,8 +7,6 @@
 
 mod common;
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-
 use optim::triangle::TriangleSettings;
 use optim::triangle::{RoundInputs, TriangleError, TriangleState, run_rounds};
 use workflow::config::TriangleConfig;
@@ -66,11 +64,11 @@ fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends()
     // A stop requested within a round (two blocks or steps after the first round's checkpoint) ends the stage
     // at the next block or step, before any more work, with the first round's checkpoint as the last one
     // written: the one a rerun resumes from, shown above to end where the uninterrupted run ends.
-    let stopping = StopAfter::default();
+    let stopping = common::StopAfter::default();
     let mut written: Vec<TriangleState> = Vec::new();
     let mut keep = |s: &TriangleState| -> Result<(), TriangleError> {
         written.push(s.clone());
-        stopping.armed.store(true, Ordering::SeqCst);
+        stopping.arm();
         Ok(())
     };
     let start = {
@@ -88,33 +86,6 @@ fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends()
         (&b.positions, &b.triangles, &b.materials, &b.emission)
     );
     assert_eq!(a.rounds_done, b.rounds_done);
-    assert!(stopping.answered.load(Ordering::SeqCst), "the stop was never asked for");
-    assert_eq!(stopping.after_stop.load(Ordering::SeqCst), 0, "work went on after the stop was requested");
-}
-
-/// Asks to stop once armed and two more positions have been reported; counts the positions reported after
-/// it first said so.
-#[derive(Default)]
-struct StopAfter {
-    armed: AtomicBool,
-    positions: AtomicU64,
-    answered: AtomicBool,
-    after_stop: AtomicU64,
-}
-
-impl optim::Progress for StopAfter {
-    fn set_position(&self, _: u64) {
-        if self.answered.load(Ordering::SeqCst) {
-            self.after_stop.fetch_add(1, Ordering::SeqCst);
-        } else if self.armed.load(Ordering::SeqCst) {
-            self.positions.fetch_add(1, Ordering::SeqCst);
-        }
-    }
-    fn stop_requested(&self) -> bool {
-        let stop = self.armed.load(Ordering::SeqCst) && self.positions.load(Ordering::SeqCst) >= 2;
-        if stop {
-            self.answered.store(true, Ordering::SeqCst);
-        }
-        stop
-    }
+    assert!(stopping.asked(), "the stop was never asked for");
+    assert_eq!(stopping.positions_after_stop(), 0, "work went on after the stop was requested");
 }

@@ -65,3 +65,58 @@ pub fn synth_scene(name: &str, spp: u32) -> (lab::synth::BuiltScene, Vec<ingest:
     let images = lab::synth::photos(&built).unwrap();
     (built, images)
 }
+
+/// A progress that asks to stop once it is armed (by [`StopAfter::arm`], or by the start of a phase whose name
+/// begins with `arm_on_phase`) and two more positions have been reported; it counts the positions reported
+/// after it first said so, which a prompt stop keeps at 0.
+#[derive(Default)]
+pub struct StopAfter {
+    arm_on_phase: Option<&'static str>,
+    armed: std::sync::atomic::AtomicBool,
+    positions: std::sync::atomic::AtomicU64,
+    answered: std::sync::atomic::AtomicBool,
+    after_stop: std::sync::atomic::AtomicU64,
+}
+
+impl StopAfter {
+    /// One that arms itself when a phase whose name begins with `prefix` starts.
+    pub fn on_phase(prefix: &'static str) -> Self {
+        Self { arm_on_phase: Some(prefix), ..Self::default() }
+    }
+    pub fn arm(&self) {
+        self.armed.store(true, std::sync::atomic::Ordering::SeqCst);
+    }
+    /// Whether it has asked to stop.
+    pub fn asked(&self) -> bool {
+        self.answered.load(std::sync::atomic::Ordering::SeqCst)
+    }
+    /// Positions reported after it first asked to stop.
+    pub fn positions_after_stop(&self) -> u64 {
+        self.after_stop.load(std::sync::atomic::Ordering::SeqCst)
+    }
+}
+
+impl optim::Progress for StopAfter {
+    fn phase(&self, name: &str, _total: u64, done: u64) {
+        if self.arm_on_phase.is_some_and(|p| name.starts_with(p)) {
+            self.arm();
+        }
+        self.set_position(done);
+    }
+    fn set_position(&self, _: u64) {
+        use std::sync::atomic::Ordering::SeqCst;
+        if self.answered.load(SeqCst) {
+            self.after_stop.fetch_add(1, SeqCst);
+        } else if self.armed.load(SeqCst) {
+            self.positions.fetch_add(1, SeqCst);
+        }
+    }
+    fn stop_requested(&self) -> bool {
+        use std::sync::atomic::Ordering::SeqCst;
+        let stop = self.armed.load(SeqCst) && self.positions.load(SeqCst) >= 2;
+        if stop {
+            self.answered.store(true, SeqCst);
+        }
+        stop
+    }
+}
