@@ -29,11 +29,11 @@
 //!    capped at an albedo of 1 plus [`CLIP_SIGMAS`] standard deviations of the samples' noise (a robust
 //!    scale from pairs of samples in the same texel): Monte Carlo renders, the corpus's photos, carry
 //!    fireflies, single pixels many times too bright, which a texel of one to three pixels cannot average
-//!    away, while no albedo exceeds 1. The texels are then
-//!    shrunk towards the triangle: ρ_k = ρ_t + m_k / (m_k + κ) · (ā_k − ā), with ā_k the mean of texel k's
-//!    m_k samples and ā the triangle's, and κ = σ² / τ² the ratio of the samples' within-texel variance σ²
-//!    to the variance τ² of the texels' true albedos, both estimated from the samples grouped by texel (the
-//!    one-way random-effects ANOVA, [`super::split::Anova::between_variance`]). This is the empirical-Bayes
+//!    away, while no albedo exceeds 1. The texels are then shrunk towards the triangle:
+//!    ρ_k = ρ_t + m_k / (m_k + κ) · (ā_k − ā), with ā_k the mean of texel k's m_k samples and ā the
+//!    triangle's, and κ = σ² / τ² the ratio of the samples' within-texel variance σ² to the variance τ² of the
+//!    texels' true albedos, both estimated from the samples grouped by texel (the one-way random-effects
+//!    ANOVA, [`super::split::Anova::between_variance`]). This is the empirical-Bayes
 //!    estimate, which minimises the expected squared error for normally spread texel albedos: a texel keeps
 //!    its own mean where the texture's spread dwarfs a texel's noise, and leans towards ρ_t where it does
 //!    not. A texel no pixel sees, and every texel of a channel whose texels vary no more than their noise
@@ -547,7 +547,7 @@ mod tests {
     #[test]
     fn photo_noise_on_a_uniform_albedo_is_not_painted_into_the_texels() {
         // Albedo 0.5 everywhere, photos with ±30 % uniform noise (17 % standard deviation), ~4 pixels per texel:
-        // the texels' plain means scatter by ~0.04, which the old fixed one-pixel prior left in the albedo. The
+        // the texels' plain means scatter by ~0.04, which a fixed one-pixel prior would leave in the albedo. The
         // between-texel variance estimated on the triangle is ~0, so the texels stay at the base colour.
         let (cells, _) = noisy_grid(32, 64, &|_| 0.5, 0.3);
         let raw = rms(cells.iter().map(|&(_, t, r)| r - t));
