@@ -87,7 +87,7 @@ impl Quality {
                 ("object.solve_pixels", Int(1024)),
                 ("object.solve_spp", Int(128)),
                 ("object.refine_steps", Int(8)),
-                ("object.holdout_spp", Int(512)),
+                ("object.holdout_spp", Int(128)),
                 ("object.try_specular", Bool(true)),
                 ("tracer.max_depth", Int(8)),
                 ("images.downscale", Int(1)),
