@@ -61,18 +61,11 @@ fn same_seed_same_result_and_resume_equals_uninterrupted() {
     // where the uninterrupted run ends.
     let stopping = common::StopAfter::on_phase("model selection");
     let mut last: Option<FitState> = None;
-    let objects = lab::synth::fit_objects(&built);
-    let inputs = optim::fit::FitInputs {
-        scene: &built.scene,
-        cameras: &built.cameras,
-        images: &images,
-        objects: &objects,
-        settings: &settings,
-        tracer: &built.settings,
-        mode: optim::fit::FitMode::Full,
-    };
-    let err = optim::fit::fit_objects(
-        &inputs,
+    let err = lab::synth::fit_with_progress(
+        &built,
+        &images,
+        &settings,
+        optim::fit::FitMode::Full,
         None,
         &mut |st: &FitState| {
             last = Some(st.clone());

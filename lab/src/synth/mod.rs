@@ -378,6 +378,20 @@ pub fn fit_in_mode(
     resume: Option<optim::fit::FitState>,
     on_checkpoint: &mut dyn FnMut(&optim::fit::FitState) -> Result<(), optim::fit::FitError>,
 ) -> Result<optim::fit::FitOutcome, optim::fit::FitError> {
+    fit_with_progress(built, images, settings, mode, resume, on_checkpoint, &optim::NoProgress)
+}
+
+/// [`fit_in_mode`] reporting to `progress`, whose [`optim::Progress::stop_requested`] the fit obeys (what a
+/// signal does to the object stage).
+pub fn fit_with_progress(
+    built: &BuiltScene,
+    images: &[ingest::photo::LinearImage],
+    settings: &optim::fit::ObjectFitSettings,
+    mode: optim::fit::FitMode<'_>,
+    resume: Option<optim::fit::FitState>,
+    on_checkpoint: &mut dyn FnMut(&optim::fit::FitState) -> Result<(), optim::fit::FitError>,
+    progress: &dyn optim::Progress,
+) -> Result<optim::fit::FitOutcome, optim::fit::FitError> {
     let objects = fit_objects(built);
     let inputs = optim::fit::FitInputs {
         scene: &built.scene,
@@ -388,7 +402,7 @@ pub fn fit_in_mode(
         tracer: &built.settings,
         mode,
     };
-    optim::fit::fit_objects(&inputs, resume, on_checkpoint, &optim::NoProgress)
+    optim::fit::fit_objects(&inputs, resume, on_checkpoint, progress)
 }
 
 /// The per-triangle stage's start on a synthetic scene with its true per-object values (what the object stage
