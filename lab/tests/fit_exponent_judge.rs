@@ -34,7 +34,8 @@ fn comparison_fits_judge_linear_photos_best_at_exponent_one() {
         let mut raised = images.clone();
         workflow::artefacts::preprocess::raise_to_exponent(&mut raised, [exponent; 3]);
         let mode = FitMode::Comparison { emitters: &emitters };
-        let out = lab::synth::fit_in_mode(&built, &raised, &settings, mode, None, &mut |_| Ok(())).unwrap();
+        let out = lab::synth::fit_in_mode(&built, &raised, &settings, mode, None, &mut |_| Ok(()), &optim::NoProgress)
+            .unwrap();
         for k in 0..n {
             let e = out.params.emission[k];
             if k == light {
@@ -70,7 +71,15 @@ fn a_comparison_fit_needs_one_emitter_flag_per_object() {
     let images = lab::synth::photos(&built).unwrap();
     let emitters = vec![true; built.desc.objects.len() + 1];
     let mode = FitMode::Comparison { emitters: &emitters };
-    let err = lab::synth::fit_in_mode(&built, &images, &ObjectFitSettings::default(), mode, None, &mut |_| Ok(()))
-        .unwrap_err();
+    let err = lab::synth::fit_in_mode(
+        &built,
+        &images,
+        &ObjectFitSettings::default(),
+        mode,
+        None,
+        &mut |_| Ok(()),
+        &optim::NoProgress,
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("emitters"), "{err}");
 }

@@ -61,7 +61,7 @@ fn same_seed_same_result_and_resume_equals_uninterrupted() {
     // where the uninterrupted run ends.
     let stopping = common::StopAfter::on_phase("model selection");
     let mut last: Option<FitState> = None;
-    let err = lab::synth::fit_with_progress(
+    let err = lab::synth::fit_in_mode(
         &built,
         &images,
         &settings,

@@ -365,25 +365,13 @@ pub fn fit_resumable(
     resume: Option<optim::fit::FitState>,
     on_checkpoint: &mut dyn FnMut(&optim::fit::FitState) -> Result<(), optim::fit::FitError>,
 ) -> Result<optim::fit::FitOutcome, optim::fit::FitError> {
-    fit_in_mode(built, images, settings, optim::fit::FitMode::Full, resume, on_checkpoint)
+    fit_in_mode(built, images, settings, optim::fit::FitMode::Full, resume, on_checkpoint, &optim::NoProgress)
 }
 
 /// [`fit_resumable`] in a given [`optim::fit::FitMode`] (a comparison fit with a fixed set of lights, or the whole
-/// fit).
+/// fit), reporting to `progress`, whose [`optim::Progress::stop_requested`] the fit obeys (what a signal does to
+/// the object stage).
 pub fn fit_in_mode(
-    built: &BuiltScene,
-    images: &[ingest::photo::LinearImage],
-    settings: &optim::fit::ObjectFitSettings,
-    mode: optim::fit::FitMode<'_>,
-    resume: Option<optim::fit::FitState>,
-    on_checkpoint: &mut dyn FnMut(&optim::fit::FitState) -> Result<(), optim::fit::FitError>,
-) -> Result<optim::fit::FitOutcome, optim::fit::FitError> {
-    fit_with_progress(built, images, settings, mode, resume, on_checkpoint, &optim::NoProgress)
-}
-
-/// [`fit_in_mode`] reporting to `progress`, whose [`optim::Progress::stop_requested`] the fit obeys (what a
-/// signal does to the object stage).
-pub fn fit_with_progress(
     built: &BuiltScene,
     images: &[ingest::photo::LinearImage],
     settings: &optim::fit::ObjectFitSettings,
