@@ -38,13 +38,24 @@ fn small_room() -> (lab::synth::BuiltScene, pixels::PixelSets, pixels::WeightedD
     (built, sets, draw)
 }
 
+/// The fit's context on the built scene, seed 3, counting into `counter`.
+fn context<'a>(built: &'a lab::synth::BuiltScene, counter: &'a SampleCounter) -> Ctx<'a> {
+    Ctx {
+        scene: &built.scene,
+        cameras: &built.cameras,
+        settings: &built.settings,
+        seed: 3,
+        samples: counter,
+        split: &optim::fit::layout::NO_SPLIT,
+    }
+}
+
 #[test]
 fn a_step_towards_the_truth_is_taken_and_a_harmful_one_is_cut_back() {
     let (built, sets, draw) = small_room();
     let k_count = built.desc.objects.len();
     let counter = SampleCounter::default();
-    let ctx =
-        Ctx { scene: &built.scene, cameras: &built.cameras, settings: &built.settings, seed: 3, samples: &counter };
+    let ctx = context(&built, &counter);
     let x_true = truth(&built);
     let light = (0..k_count).find(|&k| x_true[idx(k, EMISSION)] > 0.0).expect("the small room has a light");
     let wall = (0..k_count).find(|&k| k != light && sets.train_per_object[k] > 200).expect("a wall seen by the photos");
@@ -94,8 +105,7 @@ fn a_step_that_harms_one_object_holds_back_only_that_object() {
     let (built, sets, draw) = small_room();
     let k_count = built.desc.objects.len();
     let counter = SampleCounter::default();
-    let ctx =
-        Ctx { scene: &built.scene, cameras: &built.cameras, settings: &built.settings, seed: 3, samples: &counter };
+    let ctx = context(&built, &counter);
     let x_true = truth(&built);
     // The least-seen object that the photos constrain and that does not emit: its rows are few in the draw.
     let small = (0..k_count)

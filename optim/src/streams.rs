@@ -59,6 +59,9 @@ pub mod draw {
     pub const EMISSION_TEST: u64 = 7;
     /// Model selection: the order in which the lobe test looks at an object's pixels (keyed by the pixel).
     pub const LOBE_TEST_ORDER: u64 = 8;
+    /// Model selection: which of the test pixels an emitter's light reaches its horizon test uses (keyed by
+    /// the pixel; `crate::fit::horizon`).
+    pub const HORIZON_TEST_ORDER: u64 = 9;
     /// Per-triangle fit: the pixels of a light solve, per object as the object stage's solves draw them (keyed
     /// by its [`super::key::triangle`] key and the object, `crate::fit::pixels::draw_strata_rows`).
     pub const TRIANGLE_EMISSION_PIXELS: u64 = 0x7265;
@@ -112,6 +115,9 @@ pub mod key {
     /// (`SELECT_EMISSION_LOBE + 2k` dielectric, `+ 2k + 1` metal roughness search; the render of its arm at
     /// `SELECT_EMISSION_TEST`, with the other arms).
     pub const SELECT_EMISSION_LOBE: u64 = SELECT + (10 << 20);
+    /// Model selection: the horizon test's renders of the model with every candidate split and with one
+    /// joined again (common random numbers, the same for every candidate; `crate::fit::horizon`).
+    pub const SELECT_HORIZON_TEST: u64 = SELECT + (12 << 20);
     /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
     /// below it, the next field 2^20 above).
     pub const SELECT_STEP_CHECK: u64 = 1 << 19;

@@ -481,3 +481,27 @@ def test_bench_realistic_runs_scores_and_keeps_its_runs(tiny, tmp_path):
     assert res.returncode == 0, res.stderr[-2000:]
     assert cost.stat().st_mtime_ns == stamp
     assert (out / "realistic.csv").read_text() == table
+
+
+def test_pane_sky_models_send_the_sky_flux_through_a_vertical_pane():
+    """`scripts/corpus panes`: the uniform sky is the cosine-weighted mean radiance arriving through a vertical
+    pane, and the split sky's halves are those of the directions from above and from below the horizon,
+    checked against a Monte Carlo estimate over cosine-distributed directions about the pane's normal."""
+    from corpus.panes import sky_models
+
+    sky = generate.sky_image((3.0, 3.2, 3.6), width=64)
+    models = sky_models(sky)
+    h = sky.shape[0]
+    rng = np.random.default_rng(5)
+    # Cosine-distributed directions about the pane's normal +x; z is up.
+    u1, u2 = rng.random(400_000), rng.random(400_000)
+    r, phi = np.sqrt(u1), 2 * np.pi * u2
+    d = np.stack([np.sqrt(1 - u1), r * np.cos(phi), r * np.sin(phi)], axis=1)
+    row = np.minimum((np.arccos(np.clip(d[:, 2], -1, 1)) / np.pi * h).astype(int), h - 1)
+    seen = sky[row, 0, :].astype(np.float64)
+    up = d[:, 2] >= 0
+    assert models["uniform"][0, 0] == pytest.approx(seen.mean(0), rel=2e-3)
+    assert models["split"][0, 0] == pytest.approx(seen[up].mean(0), rel=2e-3)
+    assert models["split"][-1, 0] == pytest.approx(seen[~up].mean(0), rel=2e-3)
+    # The sky is brighter and bluer above the horizon than the ground below it.
+    assert (models["split"][0, 0] > 2 * models["split"][-1, 0]).all()

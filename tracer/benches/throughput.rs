@@ -105,6 +105,7 @@ fn scene(n: u32) -> (Scene, Params) {
             Material { base_color: Vec3::splat(0.7), roughness: 1.0, metallic: 0.0, specular: 0.0 },
         ],
         emission: vec![Vec3::ZERO, Vec3::splat(10.0)],
+        horizon: Default::default(),
     };
     (Scene::new(s).expect("scene"), params)
 }

@@ -158,10 +158,11 @@ impl<'a> Renderer<'a> {
         Ok((per_pixel.into_iter().map(|p| p.0).collect(), stats))
     }
 
-    /// The basis images of the emitter slots `slots` over `pixels`: entry i is, bit for bit, what
-    /// [`Renderer::render_pixels`] returns with this renderer's materials and an emission of 1 at `slots[i]`
-    /// and 0 elsewhere (the column ∂I/∂e of that emitter; this renderer's own emission is not used), and the
-    /// work done. Each path is traced once for all the columns ([`integrator::trace_columns`]): its
+    /// The basis images of the emission entries `slots` over `pixels` (an emitter slot, or the ground half of a
+    /// slot that this renderer's [`crate::params::Horizon`] splits): entry i is, bit for bit, what
+    /// [`Renderer::render_pixels`] returns with this renderer's materials and horizon and an emission of 1 at
+    /// `slots[i]` and 0 elsewhere (the column ∂I/∂e of that entry; this renderer's own emission is not used),
+    /// and the work done. Each path is traced once for all the columns ([`integrator::trace_columns`]): its
     /// continuation rays are shared, its next-event connections are one per column. A path whose estimate in
     /// a column is not finite is discarded from that column (module doc) and counted once.
     pub fn render_emission_columns(
@@ -175,22 +176,24 @@ impl<'a> Renderer<'a> {
     ) -> Result<(Vec<Vec<Vec3>>, TraceStats), TracerError> {
         check_pixels(cameras, pixels, spp)?;
         let n_slots = self.scene.emitter_slots();
-        if let Some(&slot) = slots.iter().find(|&&s| s as usize >= n_slots) {
-            return Err(TracerError::BadSetting {
+        let mut of_slot = Vec::with_capacity(slots.len());
+        for &entry in slots {
+            let slot = self.params.slot_of_entry(entry, n_slots).ok_or_else(|| TracerError::BadSetting {
                 what: "emission column",
-                requirement: "an emitter slot of the scene",
-                value: format!("slot {slot} of {n_slots}"),
-            });
+                requirement: "an emitter slot of the scene or the ground entry of a split slot",
+                value: format!("entry {entry} ({n_slots} slots)"),
+            })?;
+            of_slot.push(slot);
         }
-        let samplers = slots
+        let samplers = of_slot
             .iter()
             .map(|&k| {
                 let mut emission = vec![Vec3::ZERO; n_slots];
                 emission[k as usize] = Vec3::ONE;
-                LightSampler::new(self.scene, &Params { materials: Vec::new(), emission })
+                LightSampler::new(self.scene, &Params { materials: Vec::new(), emission, ..Params::default() })
             })
             .collect();
-        let cols = integrator::Columns { samplers, slots: slots.to_vec() };
+        let cols = integrator::Columns { samplers, entries: slots.to_vec() };
         let ctx = self.context();
         let n = slots.len();
         let per_pixel: Vec<(Vec<Vec3>, [u64; 2], u64)> = pixels

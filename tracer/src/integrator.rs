@@ -131,7 +131,7 @@ struct PendingShadow {
     wi_l: Vec3,
     /// Solid-angle pdf of sampling the light point.
     pdf_l: f32,
-    /// Le at the light point towards the vertex (no MIS weight), its ∂Le/∂e and emitter slot.
+    /// Le at the light point towards the vertex (no MIS weight), its ∂Le/∂e and emission entry.
     le: Vec3,
     le_factor: f32,
     emitter: u32,
@@ -189,7 +189,8 @@ fn hit_mis(lights: &LightSampler, emitter: u32, prev_bsdf_pdf: Option<f32>, t: f
 /// `frame`, BSDF `bsdf`) to the light sample `ls`, up to its shadow ray; None where it cannot contribute: the
 /// light faces away, the point lies behind the surface, or (value mode) the BSDF is 0 there, so that its
 /// shadow ray is not traced. Gradient mode still needs ∂f, evaluated after the shadow ray (`finish_shadow`).
-/// `emission(slot)` is the emitted radiance scale of the light's slot.
+/// `emission(slot, wo)` is the emission entry and radiance scale of the light's slot towards `wo` (unit, from
+/// the light point to `p`). Value mode returns None where that radiance is 0 as well (nothing to add).
 #[inline]
 #[allow(clippy::too_many_arguments)]
 fn connect<const GRAD: bool>(
@@ -200,7 +201,7 @@ fn connect<const GRAD: bool>(
     p: Vec3,
     ng: Vec3,
     ls: LightSample,
-    emission: impl Fn(u32) -> Vec3,
+    emission: impl Fn(u32, Vec3) -> (u32, Vec3),
 ) -> Option<PendingShadow> {
     let to_light = ls.p - p;
     let dist2 = to_light.length_squared();
@@ -219,9 +220,12 @@ fn connect<const GRAD: bool>(
     let from = offset_ray_origin(p, ng, wi);
     let to = offset_ray_origin(ls.p, ng_l, -wi);
     let pdf_l = ls.pdf_area * dist2 / cos_l;
-    let light_emitter = scene.emitter_of(ls.tri);
-    let le = emission(light_emitter) * le_factor;
-    Some(PendingShadow { from, dir: to - from, wi_l, pdf_l, le, le_factor, emitter: light_emitter, eval })
+    let (entry, e) = emission(scene.emitter_of(ls.tri), -wi);
+    if !GRAD && e == Vec3::ZERO {
+        return None;
+    }
+    let le = e * le_factor;
+    Some(PendingShadow { from, dir: to - from, wi_l, pdf_l, le, le_factor, emitter: entry, eval })
 }
 
 /// The continuation sampled at a vertex (`wi_l`, `f`, `pdf` of the BSDF sample, in the shading `frame`; `ng`
@@ -316,7 +320,8 @@ fn trace_mode<const GRAD: bool>(
         if factor > 0.0 {
             let mis = hit_mis(lights, emitter, prev_bsdf_pdf, t, cos_o);
             v.le_factor = factor * mis;
-            v.le = params.emission[emitter as usize] * v.le_factor;
+            v.emitter = params.emission_entry(emitter, wo);
+            v.le = params.emission[v.emitter as usize] * v.le_factor;
             l += beta * v.le;
         }
         if last {
@@ -335,7 +340,10 @@ fn trace_mode<const GRAD: bool>(
 
         // Next-event estimation, up to its shadow ray (traced below).
         let shadow = light.and_then(|ls| {
-            connect::<GRAD>(scene, profile, &bsdf, &frame, sp.p, ng, ls, |e| params.emission[e as usize])
+            connect::<GRAD>(scene, profile, &bsdf, &frame, sp.p, ng, ls, |slot, wo| {
+                let entry = params.emission_entry(slot, wo);
+                (entry, params.emission[entry as usize])
+            })
         });
 
         // BSDF sampling of the continuation. Gradient mode evaluates f once, with its derivatives.
@@ -369,13 +377,13 @@ fn trace_mode<const GRAD: bool>(
 }
 
 /// The emitters of [`trace_columns`]: one light sampler per column, each built for its slot alone at unit
-/// emission, and the column of each emitter slot.
+/// emission, and the emission entry of each column (a slot, or the ground half of a split slot).
 #[derive(Debug, Clone)]
 pub(crate) struct Columns {
     /// `samplers[i]` samples column i's slot only (empty if the slot has no area).
     pub samplers: Vec<LightSampler>,
-    /// The emitter slot of each column.
-    pub slots: Vec<u32>,
+    /// The emission entry of each column.
+    pub entries: Vec<u32>,
 }
 
 /// What [`trace_columns`] writes and reuses from path to path (one per thread, not one per path): the
@@ -390,8 +398,8 @@ pub(crate) struct ColumnScratch {
 }
 
 /// One path's estimate for every column of `cols` at once: entry i of `scratch.out` is exactly
-/// what [`trace`] in value mode returns with `Params::emission` = 1 at `cols.slots[i]` and 0 elsewhere (the
-/// basis image of that emitter), bit for bit. The columns share everything that does not depend on which
+/// what [`trace`] in value mode returns with `Params::emission` = 1 at `cols.entries[i]` and 0 elsewhere (the
+/// basis image of that emission entry), bit for bit. The columns share everything that does not depend on which
 /// object emits — the camera ray, every BSDF-sampled continuation and its Russian roulette (the throughput
 /// does not depend on emission) — and differ only in their next-event connections, each drawn with the same
 /// random numbers as that column's own path would draw them, and in their MIS weights. A basis render of K
@@ -409,7 +417,7 @@ pub(crate) fn trace_columns(
 ) {
     let Context { scene, params, settings, .. } = *ctx;
     let profile = settings.emission_profile;
-    let n = cols.slots.len();
+    let n = cols.entries.len();
     let ColumnScratch { out, shadows, picks } = scratch;
     out.clear();
     out.resize(n, Vec3::ZERO);
@@ -435,9 +443,10 @@ pub(crate) fn trace_columns(
         let cos_o = sp.ng.dot(wo);
         let factor = profile.factor(cos_o);
         if factor > 0.0 {
-            for (i, (sampler, &slot)) in cols.samplers.iter().zip(&cols.slots).enumerate() {
+            let hit_entry = params.emission_entry(emitter, wo);
+            for (i, (sampler, &entry)) in cols.samplers.iter().zip(&cols.entries).enumerate() {
                 let mis = hit_mis(sampler, emitter, prev_bsdf_pdf, t, cos_o);
-                let e = if slot == emitter { Vec3::ONE } else { Vec3::ZERO };
+                let e = if entry == hit_entry { Vec3::ONE } else { Vec3::ZERO };
                 out[i] += beta * (e * (factor * mis));
             }
         }
@@ -466,9 +475,12 @@ pub(crate) fn trace_columns(
             }
             pick
         }));
-        for (shadow, pick) in shadows.iter_mut().zip(picks.iter()) {
+        for ((shadow, pick), &entry) in shadows.iter_mut().zip(picks.iter()).zip(&cols.entries) {
             *shadow = pick.and_then(|pick| {
-                connect::<false>(scene, profile, &bsdf, &frame, sp.p, ng, pick.point(scene, u_point), |_| Vec3::ONE)
+                connect::<false>(scene, profile, &bsdf, &frame, sp.p, ng, pick.point(scene, u_point), |slot, wo| {
+                    let e = params.emission_entry(slot, wo);
+                    (e, if e == entry { Vec3::ONE } else { Vec3::ZERO })
+                })
             });
         }
         let finish =
@@ -796,6 +808,7 @@ mod tests {
                 Material { base_color: Vec3::splat(0.6), roughness: 1.0, metallic: 0.0, specular: 0.0 },
             ],
             emission: vec![Vec3::ZERO, Vec3::new(3.0, 2.0, 1.0), Vec3::new(0.2, 0.1, 0.0)],
+            horizon: Default::default(),
         };
         (Scene::new(input).expect("scene"), params)
     }

@@ -1,5 +1,5 @@
 //! Light selection for next-event estimation: a triangle is chosen with probability ∝ (mean RGB emission
-//! scale) × area, i.e. ∝ its emitted power under either profile (the profile integral over the hemisphere,
+//! scale, over both halves of a slot split at the horizon) × area, i.e. ∝ its emitted power under either profile (the profile integral over the hemisphere,
 //! π or 2π/3, is the same constant for all triangles). Built per parameter set, so an object becomes a light
 //! as soon as the optimiser gives it emission; triangles emitting nothing are never selected (their
 //! contribution is still found by BSDF sampling, with MIS weight 1).
@@ -39,10 +39,15 @@ impl LightSampler {
         let mut slots = Vec::new();
         let mut weights = Vec::new();
         for e in 0..n as u32 {
-            let em = params.emission[e as usize];
+            // A slot split at the horizon: the mean of its halves (each sends its radiance into one of the two
+            // halves of a vertical emitter's directions, so the mean is its power up to the constant above).
+            let em = match params.horizon.ground_of(e) {
+                Some(g) => (params.emission[e as usize].as_dvec3() + params.emission[g as usize].as_dvec3()) / 2.0,
+                None => params.emission[e as usize].as_dvec3(),
+            };
             // Negative or NaN emission (possible transiently inside an optimiser step) is not sampled.
             // Summed in f64: an f32 sum of three channels near f32::MAX would overflow and drop the light.
-            let w = em.as_dvec3().element_sum() / 3.0 * scene.emitter_area(e);
+            let w = em.element_sum() / 3.0 * scene.emitter_area(e);
             if w > 0.0 && w.is_finite() {
                 slots.push(e);
                 weights.push(w);

@@ -7,10 +7,37 @@ use glam::{DVec3, Vec3};
 
 /// Parameter tables, indexed by `SceneInput::material_of_tri` and `SceneInput::emitter_of_tri`.
 /// `emission[i]` is the RGB radiance scale `e` of emitter slot i (see [`EmissionProfile`]); 0 = not a light.
+/// Entries past the scene's emitter slots are the ground halves of the slots that [`Horizon`] splits.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Params {
     pub materials: Vec<Material>,
     pub emission: Vec<Vec3>,
+    pub horizon: Horizon,
+}
+
+/// Emitters whose radiance depends on the side of the horizon it leaves towards: a window pane, through which
+/// the room receives the sky from above the horizon (light travelling down) and the ground outside from
+/// below it (light travelling up), two radiances that differ by several times in brightness and in colour.
+/// A split slot emits `emission[slot]` in the directions ω that point down or level (ω·up ≤ 0, the sky's
+/// half) and `emission[ground[slot]]` in those that point up; each half is one emission entry, so radiance
+/// stays linear in the emission table and every derivative and basis image is one entry's.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Horizon {
+    /// World up, unit length (only read for split slots).
+    pub up: Vec3,
+    /// `ground[slot]`: the emission entry of the slot's upward half; None, or a slot past the vector's end,
+    /// emits one radiance in every direction.
+    pub ground: Vec<Option<u32>>,
+}
+
+impl Horizon {
+    /// The ground entry of `slot`, if the slot is split.
+    #[inline]
+    #[must_use]
+    pub fn ground_of(&self, slot: u32) -> Option<u32> {
+        self.ground.get(slot as usize).copied().flatten()
+    }
 }
 
 impl Params {
@@ -30,7 +57,70 @@ impl Params {
                 got: self.emission.len(),
             });
         }
+        let slots = scene.emitter_slots();
+        let split: Vec<(usize, u32)> =
+            self.horizon.ground.iter().enumerate().filter_map(|(s, g)| g.map(|g| (s, g))).collect();
+        // 1e-3: a normalised f32 vector is unit to ~1e-7; anything further off was not normalised (NaN is not).
+        let unit = (self.horizon.up.length() - 1.0).abs() < 1e-3;
+        if !split.is_empty() && !unit {
+            return Err(TracerError::BadSetting {
+                what: "Params::horizon.up",
+                requirement: "a unit vector",
+                value: format!("{:?}", self.horizon.up),
+            });
+        }
+        let mut used = vec![false; self.emission.len()];
+        for (slot, g) in split {
+            // A ground entry is its own parameter: past the slots, within the table, owned by one slot.
+            let ok = slot < slots && (g as usize) >= slots && (g as usize) < self.emission.len();
+            if !ok || std::mem::replace(&mut used[g as usize], true) {
+                return Err(TracerError::BadSetting {
+                    what: "Params::horizon.ground",
+                    requirement: "for an emitter slot, an emission entry past the slots owned by no other slot",
+                    value: format!("slot {slot} → entry {g} (slots {slots}, entries {})", self.emission.len()),
+                });
+            }
+        }
         Ok(())
+    }
+
+    /// The emission entry that emitter slot `slot` uses for radiance leaving it in direction `wo` (unit, away
+    /// from the surface): its ground entry when the slot is split and `wo` points up, else the slot's own.
+    #[inline]
+    #[must_use]
+    pub fn emission_entry(&self, slot: u32, wo: Vec3) -> u32 {
+        match self.horizon.ground_of(slot) {
+            Some(g) if wo.dot(self.horizon.up) > 0.0 => g,
+            _ => slot,
+        }
+    }
+
+    /// Per emitter slot (one per entry of `upward`, the slots' [`crate::scene::upward_shares`]): the radiance of a
+    /// uniform emitter that sends the same flux — (1 − u)·sky + u·ground for a split slot, its emission for
+    /// the others (exact for the uniform profile).
+    #[must_use]
+    pub fn uniform_emission(&self, upward: &[f64]) -> Vec<Vec3> {
+        upward
+            .iter()
+            .enumerate()
+            .map(|(slot, &u)| {
+                let own = self.emission.get(slot).copied().unwrap_or(Vec3::ZERO);
+                match self.horizon.ground_of(slot as u32).and_then(|g| self.emission.get(g as usize)) {
+                    Some(&ground) => ((1.0 - u) * own.as_dvec3() + u * ground.as_dvec3()).as_vec3(),
+                    None => own,
+                }
+            })
+            .collect()
+    }
+
+    /// The emitter slot whose radiance emission entry `entry` is: the entry itself, or the split slot whose
+    /// ground half it is (None for an entry past the slots that no slot uses).
+    #[must_use]
+    pub fn slot_of_entry(&self, entry: u32, slots: usize) -> Option<u32> {
+        if (entry as usize) < slots {
+            return Some(entry);
+        }
+        self.horizon.ground.iter().position(|&g| g == Some(entry)).map(|s| s as u32)
     }
 }
 

@@ -187,6 +187,14 @@ impl Scene {
         self.tri_data[tri as usize].ng
     }
 
+    /// Per emitter slot: the share of its cosine-weighted emission leaving upward ([`upward_shares`]).
+    #[must_use]
+    pub fn upward_shares(&self, up: Vec3) -> Vec<f64> {
+        let tris = (0..self.tri_data.len() as u32)
+            .map(|t| (self.emitter_of(t), f64::from(self.area(t)), self.geometric_normal(t)));
+        upward_shares(up, self.emitter_slots(), tris)
+    }
+
     #[inline]
     #[must_use]
     pub fn material_of(&self, tri: u32) -> u32 {
@@ -343,6 +351,22 @@ fn guided_partition_point<T>(entries: &[T], cdf: impl Fn(&T) -> f64, guide: &[u3
     } else {
         entries.partition_point(|e| cdf(e) <= u)
     }
+}
+
+/// Per emitter slot (`slots` of them): the share of its cosine-weighted emission that leaves upward, i.e.
+/// the area-weighted mean of (1 + n·up)/2 over its triangles, given as (slot, area, front-face normal)
+/// (the share of a cosine-weighted hemisphere on the far side of a plane through its centre is
+/// (1 + cos θ)/2, θ between the normal and the plane's normal). 0 for a slot without area.
+#[must_use]
+pub fn upward_shares(up: Vec3, slots: usize, triangles: impl Iterator<Item = (u32, f64, Vec3)>) -> Vec<f64> {
+    let (mut area, mut upward) = (vec![0.0f64; slots], vec![0.0f64; slots]);
+    for (slot, a, n) in triangles {
+        if let Some(total) = area.get_mut(slot as usize) {
+            *total += a;
+            upward[slot as usize] += a * (1.0 + f64::from(n.dot(up))) / 2.0;
+        }
+    }
+    area.iter().zip(&upward).map(|(&a, &u)| if a > 0.0 { (u / a).clamp(0.0, 1.0) } else { 0.0 }).collect()
 }
 
 #[cfg(test)]

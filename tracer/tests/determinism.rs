@@ -20,6 +20,7 @@ fn glossy_room() -> GlossyRoom {
     let mut params = Params {
         materials: vec![Material::default(); 4],
         emission: vec![Vec3::ZERO, Vec3::splat(5.0), Vec3::splat(0.1)],
+        horizon: Default::default(),
     };
     params.materials[3] =
         Material { base_color: Vec3::new(0.8, 0.5, 0.2), roughness: 0.3, metallic: 0.5, specular: 0.5 };
@@ -62,23 +63,52 @@ fn columns_match_separate_basis_renders() {
     // Russian roulette from the first bounce (the room's settings): the columns share terminated paths too.
     let GlossyRoom { scene, params, cam, pixels, settings } = glossy_room();
     let slots: Vec<u32> = (0..scene.emitter_slots() as u32).rev().collect();
+    check_columns(&scene, &params, &cam, &pixels, &settings, &slots);
+}
+
+#[test]
+fn columns_of_emitters_split_at_a_horizon_match_separate_basis_renders() {
+    // The light (slot 1) and the floor (slot 2) split at a tilted horizon, so that both halves of each reach
+    // the pixels: the ground halves are entries 3 and 4, listed among the slots' own entries.
+    let GlossyRoom { scene, mut params, cam, pixels, settings } = glossy_room();
+    params.emission.extend([Vec3::splat(2.0), Vec3::splat(0.3)]);
+    params.horizon =
+        tracer::params::Horizon { up: Vec3::new(0.8, 0.1, -0.5).normalize(), ground: vec![None, Some(3), Some(4)] };
+    check_columns(&scene, &params, &cam, &pixels, &settings, &[4, 1, 0, 3, 2]);
+    // An entry past the slots that no slot owns has no column.
     let renderer = Renderer::new(&scene, &params, &settings).expect("renderer");
-    let (cols, stats) = renderer.render_emission_columns(&[cam], &pixels, &slots, 8, 3, 17).expect("columns");
-    assert_eq!(cols.len(), slots.len());
-    for (col, &k) in cols.iter().zip(&slots) {
-        let mut emission = vec![Vec3::ZERO; scene.emitter_slots()];
-        emission[k as usize] = Vec3::ONE;
-        let basis = Params { materials: params.materials.clone(), emission };
-        let alone = render_pixels(&scene, &basis, &[cam], &pixels, 8, &settings, 3, 17).expect("render");
+    assert!(renderer.render_emission_columns(&[cam], &pixels, &[5], 8, 3, 17).is_err());
+    params.horizon.ground[2] = None;
+    let renderer = Renderer::new(&scene, &params, &settings).expect("renderer");
+    assert!(renderer.render_emission_columns(&[cam], &pixels, &[4], 8, 3, 17).is_err());
+}
+
+/// Each column of `entries` equals, bit for bit, the render with emission 1 at that entry and 0 at the others;
+/// every column lights some pixel, and the paths were traced once for all of them.
+fn check_columns(
+    scene: &Scene,
+    params: &Params,
+    cam: &Camera,
+    pixels: &[PixelRef],
+    settings: &TracerSettings,
+    entries: &[u32],
+) {
+    let renderer = Renderer::new(scene, params, settings).expect("renderer");
+    let (cols, stats) = renderer.render_emission_columns(&[*cam], pixels, entries, 8, 3, 17).expect("columns");
+    assert_eq!(cols.len(), entries.len());
+    for (col, &k) in cols.iter().zip(entries) {
+        let mut basis = params.clone();
+        basis.emission.iter_mut().for_each(|e| *e = Vec3::ZERO);
+        basis.emission[k as usize] = Vec3::ONE;
+        let alone = render_pixels(scene, &basis, &[*cam], pixels, 8, settings, 3, 17).expect("render");
         assert!(
             col.iter().zip(&alone).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)),
-            "column of emitter slot {k} differs from its own basis render"
+            "column of emission entry {k} differs from its own basis render"
         );
     }
-    // Every emitter of the room lights some pixel, and the columns traced each path once.
     assert!(cols.iter().all(|c| c.iter().any(|v| v.max_element() > 0.0)));
     assert_eq!(stats.paths, pixels.len() as u64 * 8);
-    assert!(renderer.render_emission_columns(&[cam], &pixels, &[99], 8, 3, 17).is_err());
+    assert!(renderer.render_emission_columns(&[*cam], pixels, &[99], 8, 3, 17).is_err());
 }
 
 #[test]

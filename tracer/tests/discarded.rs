@@ -22,6 +22,7 @@ fn room(lamp: f32) -> (Scene, Params) {
     let params = Params {
         materials: vec![grey(0.6), grey(0.7), grey(0.5), grey(0.4)],
         emission: vec![Vec3::ZERO, Vec3::splat(lamp), Vec3::ZERO],
+        horizon: Default::default(),
     };
     (scene, params)
 }

@@ -38,10 +38,12 @@ fn bad_render_arguments_are_errors() {
     let settings = TracerSettings::default();
     let px = [PixelRef { view: 0, x: 1, y: 1 }];
     // Tables shorter than the indices the scene uses (material 1, emitter 2).
-    let short = Params { materials: vec![Material::default()], emission: vec![Vec3::ZERO; 3] };
+    let short =
+        Params { materials: vec![Material::default()], emission: vec![Vec3::ZERO; 3], horizon: Default::default() };
     let e = render_pixels(&scene, &short, &[cam], &px, 1, &settings, 0, 0).unwrap_err();
     assert!(matches!(e, TracerError::LengthMismatch { what: "Params::materials", expected: 2, got: 1 }), "{e}");
-    let ok = Params { materials: vec![Material::default(); 2], emission: vec![Vec3::ZERO; 3] };
+    let ok =
+        Params { materials: vec![Material::default(); 2], emission: vec![Vec3::ZERO; 3], horizon: Default::default() };
     let outside = [PixelRef { view: 0, x: 4, y: 0 }];
     assert!(matches!(
         render_pixels(&scene, &ok, &[cam], &outside, 1, &settings, 0, 0),

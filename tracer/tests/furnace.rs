@@ -18,6 +18,7 @@ fn params(albedo: f32, e: f32) -> Params {
     Params {
         materials: vec![Material { base_color: Vec3::splat(albedo), roughness: 0.5, metallic: 0.0, specular: 0.0 }],
         emission: vec![Vec3::splat(e)],
+        horizon: Default::default(),
     }
 }
 

@@ -2,7 +2,8 @@
 //! colour, roughness, metallic and emission of several objects (including an object that emits nothing, whose
 //! emission gradient must still be found), the mean of many gradient estimates equals the mean of many
 //! finite-difference estimates within 3 combined standard errors. Each finite difference uses common random
-//! numbers (same seed and iteration at θ ± h); independent iterations give the standard errors.
+//! numbers (same seed and iteration at θ ± h); independent iterations give the standard errors. The light is
+//! also checked split at a horizon (`tracer::params::Horizon`), with each half's emission entry checked.
 
 mod common;
 
@@ -40,17 +41,24 @@ fn get_grad(g: &Grads, which: Param) -> f64 {
 
 #[test]
 fn path_gradients_match_finite_differences_uniform_emission() {
-    check_against_finite_differences(EmissionProfile::Uniform);
+    check_against_finite_differences(EmissionProfile::Uniform, false);
 }
 
 #[test]
 fn path_gradients_match_finite_differences_cosine_emission() {
-    check_against_finite_differences(EmissionProfile::Cosine);
+    check_against_finite_differences(EmissionProfile::Cosine, false);
 }
 
-fn check_against_finite_differences(emission_profile: EmissionProfile) {
+#[test]
+fn path_gradients_match_finite_differences_emission_split_at_a_horizon() {
+    check_against_finite_differences(EmissionProfile::Uniform, true);
+}
+
+/// `split`: the ceiling light (slot 1) emits entry 1 towards directions below a tilted horizon and entry 3
+/// above it (the tilt puts the boundary across the light's hemisphere, so both halves reach the pixels).
+fn check_against_finite_differences(emission_profile: EmissionProfile, split: bool) {
     let scene = Scene::new(small_room()).expect("scene");
-    let params = Params {
+    let mut params = Params {
         materials: vec![
             Material { base_color: Vec3::new(0.6, 0.5, 0.4), roughness: 0.35, metallic: 0.7, specular: 0.5 },
             Material { base_color: Vec3::splat(0.7), roughness: 0.5, metallic: 0.0, specular: 0.0 },
@@ -58,6 +66,7 @@ fn check_against_finite_differences(emission_profile: EmissionProfile) {
             Material { base_color: Vec3::new(0.7, 0.4, 0.2), roughness: 0.5, metallic: 0.3, specular: 1.0 },
         ],
         emission: vec![Vec3::ZERO, Vec3::new(6.0, 5.0, 4.0), Vec3::ZERO],
+        horizon: Default::default(),
     };
     let size = 12;
     let cam = look_at_camera(size, 70.0, Vec3::new(0.2, 0.1, 0.95), Vec3::new(-0.2, -0.6, -0.3));
@@ -70,7 +79,12 @@ fn check_against_finite_differences(emission_profile: EmissionProfile) {
         })
         .collect();
     let settings = TracerSettings { max_depth: 4, rr_depth: 2, emission_profile };
-    let checks = [
+    if split {
+        params.emission.push(Vec3::new(2.0, 3.0, 5.0));
+        params.horizon =
+            tracer::params::Horizon { up: Vec3::new(1.0, -0.3, 0.4).normalize(), ground: vec![None, Some(3), None] };
+    }
+    let mut checks = vec![
         (Param::BaseColor(0, 0), 0.05),
         (Param::BaseColor(2, 1), 0.05),
         (Param::BaseColor(3, 2), 0.05),
@@ -81,6 +95,9 @@ fn check_against_finite_differences(emission_profile: EmissionProfile) {
         (Param::Emission(1, 0), 0.5),
         (Param::Emission(2, 1), 0.1),
     ];
+    if split {
+        checks.push((Param::Emission(3, 2), 0.5));
+    }
     let objective = |p: &Params, it: u64| -> f64 {
         let img = render_pixels(&scene, p, &[cam], &pixels, 24, &settings, 1234, it).expect("render");
         img.iter().zip(&weights).map(|(i, w)| f64::from(i.dot(*w))).sum()
@@ -90,6 +107,7 @@ fn check_against_finite_differences(emission_profile: EmissionProfile) {
     let mut fds = vec![Vec::new(); checks.len()];
     for it in 0..iterations {
         let g = gradient_pixels(&scene, &params, &[cam], &pixels, &weights, 24, &settings, 99, it).expect("grad");
+        assert_eq!(g.emission.len(), params.emission.len());
         for (k, &(which, h)) in checks.iter().enumerate() {
             grads[k].push(get_grad(&g, which));
             let mut plus = params.clone();

@@ -14,6 +14,7 @@ fn a_recording_holds_every_query_of_the_render_and_only_those() {
     let params = Params {
         materials: vec![Material::default(); 4],
         emission: vec![Vec3::ZERO, Vec3::splat(5.0), Vec3::splat(0.1)],
+        horizon: Default::default(),
     };
     let cam = look_at_camera(8, 70.0, Vec3::new(0.2, 0.1, 0.95), Vec3::new(-0.2, -0.6, -0.3));
     let pixels: Vec<PixelRef> = (0..8).flat_map(|y| (0..8).map(move |x| PixelRef { view: 0, x, y })).collect();

@@ -30,7 +30,7 @@ fn cornell_box_matches_tungsten() {
     let xml = std::fs::read_to_string(dir.join("scene.xml")).expect("read scene.xml");
     let loaded = mitsuba_xml::load(&xml).expect("parse scene.xml");
     let scene = Scene::new(loaded.input).expect("scene");
-    let params = Params { materials: loaded.materials, emission: loaded.emission };
+    let params = Params { materials: loaded.materials, emission: loaded.emission, horizon: Default::default() };
     let (reference, w, h) = read_exr(&dir.join("TungstenRender.exr"));
     assert_eq!((w, h), (1024, 1024));
     let factor = 8;

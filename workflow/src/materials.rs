@@ -1,6 +1,6 @@
 //! `materials.json`, schema `ipt-materials/1`: the per-object result a user reads and reuses (and
-//! `pipeline render --materials` reads back). A compatibility boundary: fields are only ever added under a new
-//! format tag.
+//! `pipeline render --materials` reads back). A compatibility boundary: a field is only ever added as an
+//! optional one (files without it read as before); a change of meaning takes a new format tag.
 //!
 //! ```json
 //! {"format": "ipt-materials/1", "emission_profile": "uniform",
@@ -10,7 +10,11 @@
 //! Written by the fit, each object also carries `"why"` (the evidence for its model) and `"constrained"`
 //! (`false`: no photo constrains its material, so its values are start values, not estimates).
 //! Values are linear; `emission` is radiance in the units of the input images (the scale `e` of the
-//! emission profile: `L_e = e` for `uniform`, `L_e = e (i·n)+` for `cosine`).
+//! emission profile: `L_e = e` for `uniform`, `L_e = e (i·n)+` for `cosine`). An emitter the fit split at the
+//! horizon (a window pane, `optim::fit::horizon`) also carries
+//! `"horizon": {"up": [0, 0, 1], "sky": [..], "ground": [..]}`: it emits `sky` in the directions that point
+//! down or level (ω·up ≤ 0) and `ground` in those that point up, and its `emission` is the uniform radiance
+//! that sends the same flux (what a renderer without the split, and every mesh export, uses).
 
 use std::path::{Path, PathBuf};
 
@@ -54,6 +58,21 @@ pub struct ObjectMaterial {
     /// pixels): its values are then the fit's start values, not estimates. Optional like `why`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub constrained: Option<bool>,
+    /// The two radiances of an emitter split at the horizon; absent for one radiance in every direction.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub horizon: Option<HorizonEmission>,
+}
+
+/// An emitter's radiance on either side of the horizon (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HorizonEmission {
+    /// World up, unit length.
+    pub up: [f32; 3],
+    /// Radiance in the directions with ω·up ≤ 0 (light travelling down or level, as the sky's through a window).
+    pub sky: [f32; 3],
+    /// Radiance in the directions with ω·up > 0.
+    pub ground: [f32; 3],
 }
 
 /// Errors reading a materials file or matching it to a scene.
@@ -111,25 +130,70 @@ impl MaterialsFile {
             if !o.emission.iter().all(|&e| e.is_finite() && e >= 0.0) {
                 return Err(bad("emission must be finite and non-negative"));
             }
+            if let Some(h) = &o.horizon {
+                if !h.sky.iter().chain(&h.ground).all(|&e| e.is_finite() && e >= 0.0) {
+                    return Err(bad("horizon.sky and horizon.ground must be finite and non-negative"));
+                }
+                // 1e-3: a unit vector written with f32's 9 significant digits is unit to ~1e-7 (NaN is not).
+                let unit = (Vec3::from(h.up).length() - 1.0).abs() < 1e-3;
+                if !unit {
+                    return Err(bad("horizon.up must be a unit vector"));
+                }
+            }
+        }
+        let ups: Vec<[f32; 3]> = file.objects.iter().filter_map(|o| o.horizon.map(|h| h.up)).collect();
+        if ups.windows(2).any(|w| w[0] != w[1]) {
+            return Err(MaterialsError::Parse {
+                path: path.to_path_buf(),
+                message: "objects split at the horizon give different `horizon.up` vectors".into(),
+            });
         }
         Ok(file)
     }
 
     /// The parameter tables for a scene whose objects have `ids` (material slot i = emitter slot i = object
-    /// i). Every object must appear in the file; extra entries are ignored.
+    /// i), with the emitters split at the horizon split (their ground halves appended after the objects'
+    /// entries). Every object must appear in the file; extra entries are ignored.
     pub fn params_for(&self, ids: &[i64], path: &Path) -> Result<Params, MaterialsError> {
-        let mut params = Params { materials: Vec::with_capacity(ids.len()), emission: Vec::with_capacity(ids.len()) };
-        for (index, &id) in ids.iter().enumerate() {
-            let o = self.objects.iter().find(|o| o.id == id).ok_or_else(|| MaterialsError::Object {
-                path: path.to_path_buf(),
-                index,
-                id,
-                message: "the scene has this object but the materials file does not".into(),
-            })?;
-            params.materials.push(o.material());
-            params.emission.push(Vec3::from(o.emission));
+        let objects = self.objects_for(ids, path)?;
+        let mut params = Params {
+            materials: objects.iter().map(|o| o.material()).collect(),
+            emission: objects.iter().map(|o| Vec3::from(o.horizon.map_or(o.emission, |h| h.sky))).collect(),
+            horizon: Default::default(),
+        };
+        let mut ground = vec![None; objects.len()];
+        for (k, o) in objects.iter().enumerate() {
+            if let Some(h) = &o.horizon {
+                ground[k] = Some(params.emission.len() as u32);
+                params.emission.push(Vec3::from(h.ground));
+                params.horizon.up = Vec3::from(h.up).normalize();
+            }
+        }
+        if ground.iter().any(Option::is_some) {
+            params.horizon.ground = ground;
         }
         Ok(params)
+    }
+
+    /// Per object of `ids`: its `emission`, the uniform radiance (for a split emitter, the one of the same
+    /// flux): what the mesh exports carry.
+    pub fn uniform_emission_for(&self, ids: &[i64], path: &Path) -> Result<Vec<Vec3>, MaterialsError> {
+        Ok(self.objects_for(ids, path)?.iter().map(|o| Vec3::from(o.emission)).collect())
+    }
+
+    /// The file's entry of every object of `ids`, in that order.
+    fn objects_for(&self, ids: &[i64], path: &Path) -> Result<Vec<&ObjectMaterial>, MaterialsError> {
+        ids.iter()
+            .enumerate()
+            .map(|(index, &id)| {
+                self.objects.iter().find(|o| o.id == id).ok_or_else(|| MaterialsError::Object {
+                    path: path.to_path_buf(),
+                    index,
+                    id,
+                    message: "the scene has this object but the materials file does not".into(),
+                })
+            })
+            .collect()
     }
 }
 
@@ -153,6 +217,7 @@ mod tests {
                 model: "diffuse+emission".into(),
                 why: None,
                 constrained: None,
+                horizon: None,
             }],
         }
     }
@@ -190,5 +255,33 @@ mod tests {
         let p = sample().params_for(&[7], &path).unwrap();
         assert_eq!(p.emission, [Vec3::new(10.0, 9.0, 8.0)]);
         assert_eq!(p.materials[0].base_color, Vec3::new(0.5, 0.25, 0.125));
+    }
+
+    #[test]
+    fn an_emitter_split_at_the_horizon_reads_back_as_two_entries() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.json");
+        let mut m = sample();
+        m.objects.push(ObjectMaterial { id: 9, label: "window".into(), ..m.objects[0].clone() });
+        m.objects[1].emission = [2.0, 2.0, 2.0];
+        m.objects[1].horizon =
+            Some(HorizonEmission { up: [0.0, 0.0, 1.0], sky: [3.0, 3.0, 3.0], ground: [1.0, 1.0, 1.0] });
+        std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert_eq!(v["objects"][1]["horizon"]["ground"], serde_json::json!([1.0, 1.0, 1.0]));
+        assert!(v["objects"][0].get("horizon").is_none());
+        let read = MaterialsFile::read(&path).unwrap();
+        assert_eq!(read, m);
+        // The tracer's tables: the sky half in the object's own entry, the ground half appended.
+        let p = read.params_for(&[9, 7], &path).unwrap();
+        assert_eq!(p.emission, [Vec3::splat(3.0), Vec3::new(10.0, 9.0, 8.0), Vec3::splat(1.0)]);
+        assert_eq!(p.horizon.ground, [Some(2), None]);
+        assert_eq!(p.horizon.up, Vec3::Z);
+        assert_eq!(read.uniform_emission_for(&[9], &path).unwrap(), [Vec3::splat(2.0)]);
+        // A horizon whose up is not a unit vector is refused, naming the object.
+        m.objects[1].horizon = Some(HorizonEmission { up: [0.0, 0.0, 2.0], sky: [3.0; 3], ground: [1.0; 3] });
+        std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
+        let e = MaterialsFile::read(&path).unwrap_err();
+        assert!(e.to_string().contains("id 9") && e.to_string().contains("horizon.up"), "{e}");
     }
 }

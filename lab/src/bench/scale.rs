@@ -125,6 +125,7 @@ fn point(base: &SceneDesc, axis: &'static str, value: u32, quick: bool) -> Point
                     metallic: 0.0,
                     specular: 0.0,
                     emission: [0.0; 3],
+                    emission_ground: None,
                     hidden: false,
                     checker: None,
                 });

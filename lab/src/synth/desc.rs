@@ -23,6 +23,8 @@
 //! metallic = 0.0
 //! specular = 0.0
 //! emission = [0, 0, 0]
+//! emission_ground = [0, 0, 0] # optional: split at the horizon (up = +z), the radiance towards directions
+//!                             # that point up; `emission` is then the one towards those pointing down or level
 //! hidden = false              # true: generation fails if any camera pixel sees this object
 //! checker = { squares = 4, colors = [[0.8, 0.8, 0.8], [0.1, 0.1, 0.1]] }   # optional, quads only
 //!
@@ -119,6 +121,11 @@ pub struct ObjectSpec {
     pub specular: f32,
     #[serde(default)]
     pub emission: [f32; 3],
+    /// The emission split at the horizon (world up +z, `tracer::params::Horizon`): the radiance towards the
+    /// directions that point up, as a window's from the ground outside; `emission` is then the one towards
+    /// those that point down or level (the sky's). None: one radiance in every direction.
+    #[serde(default)]
+    pub emission_ground: Option<[f32; 3]>,
     #[serde(default)]
     pub hidden: bool,
     /// A checkerboard albedo (quads only): the photos are rendered from a finely tessellated copy of the quad

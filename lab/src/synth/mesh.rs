@@ -79,6 +79,7 @@ mod tests {
             metallic: 0.0,
             specular: 0.0,
             emission: [0.0; 3],
+            emission_ground: None,
             hidden: false,
             checker: None,
         }

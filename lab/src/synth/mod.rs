@@ -100,7 +100,7 @@ pub fn load_desc(path: &Path) -> Result<SceneDesc, SynthError> {
         {
             return Err(bad(format!("object {}: checker needs squares ≥ 1 and colours in [0, 1]", o.id)));
         }
-        if !o.emission.iter().all(|&e| e >= 0.0 && e.is_finite()) {
+        if !o.emission.iter().chain(o.emission_ground.iter().flatten()).all(|&e| e >= 0.0 && e.is_finite()) {
             return Err(bad(format!("object {}: emission must be finite and ≥ 0", o.id)));
         }
     }
@@ -162,7 +162,22 @@ pub fn build(desc: SceneDesc, path: &Path) -> Result<BuiltScene, SynthError> {
         material_of_tri,
         emitter_of_tri: render.object_of_tri.clone(),
     })?;
-    let params = tracer::Params { materials, emission: desc.objects.iter().map(|o| Vec3::from(o.emission)).collect() };
+    let mut params = tracer::Params {
+        materials,
+        emission: desc.objects.iter().map(|o| Vec3::from(o.emission)).collect(),
+        horizon: Default::default(),
+    };
+    if desc.objects.iter().any(|o| o.emission_ground.is_some()) {
+        // Emissions split at the horizon: each ground half is an entry after the objects' own.
+        let mut ground = vec![None; desc.objects.len()];
+        for (k, o) in desc.objects.iter().enumerate() {
+            if let Some(g) = o.emission_ground {
+                ground[k] = Some(params.emission.len() as u32);
+                params.emission.push(Vec3::from(g));
+            }
+        }
+        params.horizon = tracer::params::Horizon { up: Vec3::Z, ground };
+    }
     let mut cameras = Vec::with_capacity(desc.cameras.len());
     for (k, c) in desc.cameras.iter().enumerate() {
         let pose = matterport::look_at(c.eye.into(), c.target.into(), c.up.into()).ok_or_else(|| SynthError::Desc {
@@ -207,9 +222,11 @@ fn check_hidden(built: &BuiltScene, path: &Path) -> Result<(), SynthError> {
     Ok(())
 }
 
-/// The ground truth in the `ipt-materials/1` schema of `materials.json`.
+/// The ground truth in the `ipt-materials/1` schema of `materials.json` (an emission split at the horizon
+/// as `materials.json` writes it: both halves, and the uniform emission of the same flux).
 #[must_use]
 pub fn ground_truth_json(built: &BuiltScene) -> serde_json::Value {
+    let uniform = built.params.uniform_emission(&built.scene.upward_shares(Vec3::Z));
     let mut tris = vec![0usize; built.desc.objects.len()];
     for &o in &built.mesh.object_of_tri {
         tris[o as usize] += 1;
@@ -220,7 +237,7 @@ pub fn ground_truth_json(built: &BuiltScene) -> serde_json::Value {
         .iter()
         .enumerate()
         .map(|(i, o)| {
-            let emits = o.emission.iter().any(|&e| e > 0.0);
+            let emits = o.emission.iter().chain(o.emission_ground.iter().flatten()).any(|&e| e > 0.0);
             let glossy = o.specular > 0.0 || o.metallic > 0.0;
             let model = match (glossy, emits) {
                 (false, false) => "diffuse",
@@ -228,12 +245,16 @@ pub fn ground_truth_json(built: &BuiltScene) -> serde_json::Value {
                 (false, true) => "diffuse+emission",
                 (true, true) => "specular+emission",
             };
-            serde_json::json!({
+            let mut v = serde_json::json!({
                 "id": o.id, "label": o.label, "triangles": tris[i],
                 "base_color": o.checker.map_or(o.base_color, |c| std::array::from_fn(|k| 0.5 * (c.colors[0][k] + c.colors[1][k]))),
                 "roughness": o.roughness, "metallic": o.metallic, "specular": o.specular,
-                "emission": o.emission, "model": model,
-            })
+                "emission": uniform[i].to_array(), "model": model,
+            });
+            if let Some(g) = o.emission_ground {
+                v["horizon"] = serde_json::json!({"up": [0.0, 0.0, 1.0], "sky": o.emission, "ground": g});
+            }
+            v
         })
         .collect();
     let profile = match built.desc.emission_profile {
@@ -401,7 +422,8 @@ pub fn true_triangle_start(
     let k = built.desc.objects.len();
     let params = tracer::Params {
         materials: built.params.materials[..k].to_vec(),
-        emission: built.params.emission[..k].to_vec(),
+        emission: built.params.emission.clone(),
+        horizon: built.params.horizon.clone(),
     };
     optim::triangle::TriangleState::from_objects(
         built.mesh.positions.clone(),

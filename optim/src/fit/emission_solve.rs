@@ -17,7 +17,7 @@
 //!   (docs/optim/design-measurements.md, "Solve pixels per object and the checker light").
 
 use super::jacobian::{self, Ctx};
-use super::layout::{self, BASE_COLOR, EMISSION, EMISSION_MAX, idx};
+use super::layout::{self, BASE_COLOR, EMISSION, EMISSION_GROUND, EMISSION_MAX, idx};
 use super::linear::{self, DataLoss, Problem};
 use super::pixels::WeightedDraw;
 use rayon::prelude::*;
@@ -80,10 +80,31 @@ pub fn solve_step_pinned(
     let k_count = x.len() / layout::PER_OBJECT;
     let samples = &draw.samples;
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
-    let params = layout::to_params(x);
+    let params = ctx.params(x);
     // Two independent estimates of every Jacobian entry (instrumental variables, see `linear::Problem`).
     let key2 = iteration_key ^ SECOND_ESTIMATE;
     let joint = opts.unknowns == Unknowns::EmissionAndBaseColor;
+    // The emission unknowns (object, its layout entry, the tracer's emission entry): every object's own (its
+    // sky half when split), then the ground half of every object the context splits, in object order
+    // (`layout::Split::params`). An emission-only solve leaves out the objects held at 0: their columns would
+    // be rendered for nothing (the solver drops a variable held at 0 from its sums, so the others' values are
+    // the same bit for bit).
+    let held = |k: usize| !joint && no_emission.get(k).copied().unwrap_or(false);
+    let unknowns: Vec<(usize, usize, u32)> = (0..k_count)
+        .filter(|&k| !held(k))
+        .map(|k| (k, EMISSION, k as u32))
+        .chain(
+            (0..k_count)
+                .filter(|&k| !held(k))
+                .filter_map(|k| params.horizon.ground_of(k as u32).map(|g| (k, EMISSION_GROUND, g))),
+        )
+        .collect();
+    for k in (0..k_count).filter(|&k| held(k)) {
+        for c in 0..3 {
+            x[idx(k, EMISSION + c)] = 0.0;
+            x[idx(k, EMISSION_GROUND + c)] = 0.0;
+        }
+    }
     // Emission-only solves use basis renders (every object's column by next-event estimation, also for objects
     // that do not emit yet); the joint step takes both blocks from the same gradient paths, one pass instead
     // of K basis renders.
@@ -91,16 +112,17 @@ pub fn solve_step_pinned(
         let r1 = jacobian::pixel_rows(ctx, &params, &pixels, spp, iteration_key)?;
         let r2 = jacobian::pixel_rows(ctx, &params, &pixels, spp, key2)?;
         let cols = |r: &[jacobian::PixelRow]| -> Vec<Vec<[f64; 3]>> {
-            (0..k_count).map(|k| r.iter().map(|row| row.emission[k]).collect()).collect()
+            unknowns.iter().map(|&(_, _, e)| r.iter().map(|row| row.emission[e as usize]).collect()).collect()
         };
         let rho =
             |r: &[jacobian::PixelRow]| -> Vec<Vec<[f64; 3]>> { r.iter().map(|row| row.base_color.clone()).collect() };
         (cols(&r1), cols(&r2), rho(&r1), rho(&r2))
     } else {
         let spp = basis_spp(spp, opts.basis_rows, pixels.len());
+        let entries: Vec<u32> = unknowns.iter().map(|&(_, _, e)| e).collect();
         (
-            jacobian::emission_columns(ctx, &params.materials, &pixels, spp, iteration_key)?,
-            jacobian::emission_columns(ctx, &params.materials, &pixels, spp, key2)?,
+            jacobian::entry_columns(ctx, &params, &pixels, spp, iteration_key, &entries)?,
+            jacobian::entry_columns(ctx, &params, &pixels, spp, key2, &entries)?,
             Vec::new(),
             Vec::new(),
         )
@@ -116,13 +138,14 @@ pub fn solve_step_pinned(
     let triple = |k: usize, at: usize| [x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]];
     // The joint step keeps the emitters it is given (see the module docs): no emission penalty, and an object
     // that does not emit does not start to.
-    let pinned: Vec<bool> = (0..k_count)
+    let pinned_object: Vec<bool> = (0..k_count)
         .map(|k| {
             no_emission.get(k).copied().unwrap_or(false) || (joint && triple(k, EMISSION).iter().all(|&v| v == 0.0))
         })
         .collect();
+    let pinned: Vec<bool> = unknowns.iter().map(|&(k, _, _)| pinned_object[k]).collect();
     let opts = &if joint { SolveOptions { emission_l1: 0.0, ..*opts } } else { *opts };
-    let mut emission: Vec<[f64; 3]> = (0..k_count).map(|k| triple(k, EMISSION)).collect();
+    let mut emission: Vec<[f64; 3]> = unknowns.iter().map(|&(k, at, _)| triple(k, at)).collect();
     let mut base_color: Vec<[f64; 3]> = free.iter().map(|&k| triple(k, BASE_COLOR)).collect();
     let loss = solve_on_columns(
         Columns { a: &je, b: &je2 },
@@ -136,9 +159,9 @@ pub fn solve_step_pinned(
         &vec![[1.0; 3]; free.len()],
         opts,
     );
-    for (k, e) in emission.iter().enumerate() {
+    for (&(k, at, _), e) in unknowns.iter().zip(&emission) {
         for c in 0..3 {
-            x[idx(k, EMISSION + c)] = e[c];
+            x[idx(k, at + c)] = e[c];
         }
     }
     for (&k, rho) in free.iter().zip(&base_color) {

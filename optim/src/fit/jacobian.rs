@@ -12,18 +12,8 @@ use super::samples::SampleCounter;
 use rayon::prelude::*;
 use tracer::{PixelRef, TracerError};
 
-/// `cols[k][j]` = ∂I_j/∂e_k per channel (as f64 RGB) for every object k.
-pub fn emission_columns(
-    ctx: &Ctx<'_>,
-    materials: &[tracer::Material],
-    pixels: &[PixelRef],
-    spp: u32,
-    iteration_key: u64,
-) -> Result<Vec<Vec<[f64; 3]>>, TracerError> {
-    emission_columns_of(ctx, materials, pixels, spp, iteration_key, &vec![true; materials.len()])
-}
-
-/// [`emission_columns`] for the objects with `wanted[k]` only; the others' columns are left empty. Every
+/// `cols[k][j]` = ∂I_j/∂e_k per channel (as f64 RGB) for the objects with `wanted[k]`, no emitter split; the
+/// others' columns are left empty. Every
 /// column is, bit for bit, the basis render of its object alone (`tracer::Renderer::render_emission_columns`:
 /// the columns share each path's continuation rays and differ in their next-event connections), so a column
 /// does not depend on which others are asked for.
@@ -41,14 +31,35 @@ pub fn emission_columns_of(
     if slots.is_empty() {
         return Ok(out);
     }
-    let params = tracer::Params { materials: materials.to_vec(), emission: vec![glam::Vec3::ZERO; k_count] };
-    let r = tracer::Renderer::new(ctx.scene, &params, ctx.settings)?;
-    let (cols, stats) = r.render_emission_columns(ctx.cameras, pixels, &slots, spp, ctx.seed, iteration_key)?;
-    ctx.samples.add(&stats);
-    for (&k, col) in slots.iter().zip(cols) {
-        out[k as usize] = col.iter().map(|c| [f64::from(c.x), f64::from(c.y), f64::from(c.z)]).collect();
+    let params = tracer::Params {
+        materials: materials.to_vec(),
+        emission: vec![glam::Vec3::ZERO; k_count],
+        horizon: Default::default(),
+    };
+    for (&k, col) in slots.iter().zip(entry_columns(ctx, &params, pixels, spp, iteration_key, &slots)?) {
+        out[k as usize] = col;
     }
     Ok(out)
+}
+
+/// The basis images of the emission entries `entries` of `params` over `pixels` — an object's slot, or the
+/// ground half that `params.horizon` splits off a slot (`tracer::params::Horizon`); `params.emission` itself
+/// is not used: `cols[i][j]` = ∂I_j/∂e per channel for entry `entries[i]`, bit for bit its basis render alone.
+pub fn entry_columns(
+    ctx: &Ctx<'_>,
+    params: &tracer::Params,
+    pixels: &[PixelRef],
+    spp: u32,
+    iteration_key: u64,
+    entries: &[u32],
+) -> Result<Vec<Vec<[f64; 3]>>, TracerError> {
+    if entries.is_empty() {
+        return Ok(Vec::new());
+    }
+    let r = tracer::Renderer::new(ctx.scene, params, ctx.settings)?;
+    let (cols, stats) = r.render_emission_columns(ctx.cameras, pixels, entries, spp, ctx.seed, iteration_key)?;
+    ctx.samples.add(&stats);
+    Ok(cols.iter().map(|col| col.iter().map(|c| [f64::from(c.x), f64::from(c.y), f64::from(c.z)]).collect()).collect())
 }
 
 /// One pixel's Jacobian row: `base_color[k]` = ∂I/∂ρ_k and `emission[k]` = ∂I/∂e_k, per channel.
@@ -120,9 +131,17 @@ pub struct Ctx<'a> {
     pub seed: u64,
     /// Where every call through [`Ctx::render`] and [`Ctx::gradient`] adds its path counts.
     pub samples: &'a SampleCounter,
+    /// The emitters split at the horizon ([`super::layout::NO_SPLIT`] until model selection splits any).
+    pub split: &'a super::layout::Split,
 }
 
 impl Ctx<'_> {
+    /// The tracer's tables of the layout vector `x` under this context's split.
+    #[must_use]
+    pub fn params(&self, x: &[f64]) -> tracer::Params {
+        self.split.params(x)
+    }
+
     /// `tracer::Renderer::render_pixels` with this context's scene, cameras, settings and seed; the work is
     /// counted in `samples`.
     pub fn render(

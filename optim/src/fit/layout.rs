@@ -1,18 +1,21 @@
 //! The flat parameter vector of the per-object fit and its mapping to the tracer's tables.
 //!
-//! Object k owns entries `9k .. 9k + 9`: base colour RGB, roughness, metallic, specular, emission RGB.
+//! Object k owns entries `12k .. 12k + 12`: base colour RGB, roughness, metallic, specular, emission RGB, and
+//! the RGB ground half of its emission, read only when model selection splits the object's emission at the
+//! horizon (`super::horizon`; then `emission` is its sky half).
 //! Values are kept in f64 (the optimiser's precision, and what checkpoints store) and converted to f32 for
 //! the tracer, so an interrupted and resumed run sees exactly the same numbers as an uninterrupted one.
 
 use glam::Vec3;
 
 /// Entries per object.
-pub const PER_OBJECT: usize = 9;
+pub const PER_OBJECT: usize = 12;
 pub const BASE_COLOR: usize = 0;
 pub const ROUGHNESS: usize = 3;
 pub const METALLIC: usize = 4;
 pub const SPECULAR: usize = 5;
 pub const EMISSION: usize = 6;
+pub const EMISSION_GROUND: usize = 9;
 
 /// Upper bound of emission in the optimiser's box. Emission is radiance in image units and has no natural
 /// upper limit; 1e6 only keeps a diverging run finite (HDR pixels of 1e5 are the largest the fit must handle).
@@ -46,12 +49,60 @@ pub fn bounds(objects: usize) -> (Vec<f64>, Vec<f64>) {
     for k in 0..objects {
         for c in 0..3 {
             hi[idx(k, EMISSION + c)] = EMISSION_MAX;
+            hi[idx(k, EMISSION_GROUND + c)] = EMISSION_MAX;
         }
     }
     (lo, hi)
 }
 
-/// The tracer's parameter tables (material slot k = emitter slot k = object k).
+/// Which emitters are split at the horizon (model selection's decision, `super::horizon`); their halves are
+/// the layout's `EMISSION` (sky) and `EMISSION_GROUND` entries.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Split {
+    /// World up (unit; zero when no split is possible).
+    pub up: Vec3,
+    /// Per object: split (an object past the end is not).
+    pub split: Vec<bool>,
+}
+
+/// No object split: the fit's context until model selection splits any.
+pub static NO_SPLIT: Split = Split { up: Vec3::ZERO, split: Vec::new() };
+
+impl Split {
+    /// True when no object is split.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        !self.split.iter().any(|&s| s)
+    }
+
+    /// Whether object k is split.
+    #[must_use]
+    pub fn of(&self, k: usize) -> bool {
+        self.split.get(k).copied().unwrap_or(false)
+    }
+
+    /// The tracer's tables of `x`: [`to_params`] with the ground half of every split object
+    /// appended after the objects' own emission entries, in object order.
+    #[must_use]
+    pub fn params(&self, x: &[f64]) -> tracer::Params {
+        let mut p = to_params(x);
+        if self.is_empty() {
+            return p;
+        }
+        let n = p.emission.len();
+        let mut ground = vec![None; n];
+        for k in (0..n).filter(|&k| self.of(k)) {
+            ground[k] = Some(p.emission.len() as u32);
+            let v = |c: usize| x[idx(k, EMISSION_GROUND + c)] as f32;
+            p.emission.push(Vec3::new(v(0), v(1), v(2)));
+        }
+        p.horizon = tracer::params::Horizon { up: self.up, ground };
+        p
+    }
+}
+
+/// The tracer's parameter tables (material slot k = emitter slot k = object k), no emitter split
+/// ([`Split::params`] splits).
 #[must_use]
 pub fn to_params(x: &[f64]) -> tracer::Params {
     let n = x.len() / PER_OBJECT;
@@ -66,6 +117,7 @@ pub fn to_params(x: &[f64]) -> tracer::Params {
             })
             .collect(),
         emission: (0..n).map(|k| v3(k, EMISSION)).collect(),
+        horizon: tracer::params::Horizon::default(),
     }
 }
 

@@ -29,7 +29,8 @@
 //!    only when it lowers the held-out residual significantly, against the model without it and, for an
 //!    object the photos see, against its best dielectric or metal lobe without emission (an object that
 //!    mirrors a lamp is a metal, not a light). Objects seen in fewer than 16 training pixels are
-//!    reported unconstrained (no lobe trial).
+//!    reported unconstrained (no lobe trial). A kept emitter that faces sideways, a window pane, is split at
+//!    the horizon when the held-out pixels its light reaches pay for a second radiance ([`horizon`]).
 //! 5. **Objects no photo sees** ([`prior`]): steps 2–3 estimate their base colours too, through the light
 //!    they reflect onto the objects the photos see; each is then weighed against a stated prior (the
 //!    area-weighted distribution of the observed objects of its category, or of all) by its standard error.
@@ -59,10 +60,12 @@
 
 pub mod adam;
 pub mod emission_solve;
+pub mod horizon;
 pub mod jacobian;
 pub mod layout;
 pub mod linear;
 pub mod object;
+pub(crate) mod paired;
 pub mod pixels;
 pub mod prior;
 pub mod roughness;

@@ -128,7 +128,7 @@ pub(crate) fn adam_iteration(
     let k_count = x.len() / PER_OBJECT;
     let batch = train.draw_train(s.batch_pixels as usize, ctx.seed, draw::BATCH, key);
     let pix: Vec<PixelRef> = batch.iter().map(|b| b.pixel).collect();
-    let params = layout::to_params(x);
+    let params = ctx.params(x);
     let values = ctx.render(&params, &pix, s.n_value, key)?;
     let b = batch.len().max(1) as f32;
     let mut loss = 0.0;
@@ -169,8 +169,14 @@ pub fn fit_objects(
         Some(st) => SampleCounter::starting_at(st.traced_paths, st.discarded_samples),
         None => SampleCounter::default(),
     };
-    let ctx =
-        Ctx { scene: inputs.scene, cameras: inputs.cameras, settings: inputs.tracer, seed: s.seed, samples: &samples };
+    let ctx = Ctx {
+        scene: inputs.scene,
+        cameras: inputs.cameras,
+        settings: inputs.tracer,
+        seed: s.seed,
+        samples: &samples,
+        split: &crate::fit::layout::NO_SPLIT,
+    };
     let sets = pixels::collect(
         inputs.scene,
         inputs.cameras,
@@ -325,7 +331,7 @@ pub fn fit_objects(
     }
 
     let x = average_refinement(&state, s);
-    let (mut x, mut per_object) = match inputs.mode {
+    let (mut x, mut per_object, split) = match inputs.mode {
         FitMode::Full => select::choose_models(&ctx, s, &sets, &x, &free, progress)?,
         FitMode::Comparison { .. } => {
             let per_object = (0..k_count)
@@ -338,9 +344,11 @@ pub fn fit_objects(
                     }
                 })
                 .collect();
-            (x, per_object)
+            (x, per_object, layout::Split::default())
         }
     };
+    // Everything after model selection renders with the emitters it split at the horizon.
+    let ctx = Ctx { split: &split, ..ctx };
     // The unseen objects' estimates, weighed against the prior by their standard errors (`prior`).
     let prior = UnseenPrior::new(inputs.scene, inputs.objects, &free);
     let unseen = if inputs.mode == FitMode::Full { prior.unseen() } else { Vec::new() };
@@ -382,7 +390,7 @@ pub fn fit_objects(
         return Err(FitError::TooManyDiscarded { discarded: discarded_samples, paths: traced_paths });
     }
     Ok(FitOutcome {
-        params: layout::to_params(&x),
+        params: split.params(&x),
         history: state.history,
         per_object,
         traced_paths,

@@ -29,7 +29,7 @@
 
 use super::ObjectDesc;
 use super::jacobian::{self, Ctx};
-use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
+use super::layout::{BASE_COLOR, EMISSION, PER_OBJECT, idx};
 use super::linear::sandwich_diagonal;
 use super::pixels::WeightedDraw;
 use crate::streams::key::{PROFILE_JACOBIAN, SECOND_ESTIMATE};
@@ -205,7 +205,7 @@ pub fn standard_errors(
     averaged: usize,
 ) -> Result<Vec<[f64; 3]>, TracerError> {
     let k_count = x.len() / PER_OBJECT;
-    let params = layout::to_params(x);
+    let params = ctx.params(x);
     let pixels: Vec<PixelRef> = draw.samples.iter().map(|s| s.pixel).collect();
     let m = pixels.len();
     let mut out = vec![[f64::INFINITY; 3]; objects.len()];

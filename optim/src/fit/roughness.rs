@@ -18,7 +18,7 @@
 //! Jacobian is noisy enough that the steps wander inside the trust region.
 
 use super::jacobian::{self, Ctx};
-use super::layout::{self, BASE_COLOR, METALLIC, ROUGHNESS, SPECULAR, idx};
+use super::layout::{BASE_COLOR, METALLIC, ROUGHNESS, SPECULAR, idx};
 use super::linear::{self, DataLoss, Problem};
 use super::pixels::Sample;
 use crate::streams::key;
@@ -81,7 +81,7 @@ pub fn profile(
 ) -> Result<ProfilePoint, TracerError> {
     let mut xr = x.to_vec();
     xr[idx(k, ROUGHNESS)] = r;
-    let params = layout::to_params(&xr);
+    let params = ctx.params(&xr);
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
     let values = ctx.render(&params, &pixels, spp, key)?;
     // Independent random numbers for the Jacobian (the value and its slope must not share noise).

@@ -6,28 +6,25 @@
 //! the room too faintly for the test on the pixels it lights, so an emitter that test does not keep is tested
 //! again on the pixels that see it, against its best base colour and lobe without emission fitted there
 //! (measured: the same file, "Small lamps and per-object step checks").
+//! Last, a kept emitter that faces sideways may be split at the horizon (`super::horizon`): the closing re-fit
+//! runs with every such emitter split, and each keeps its split only where the held-out pixels its light
+//! reaches pay for it.
 
 use super::emission_solve::{Unknowns, solve_step_pinned};
+use super::horizon;
 use super::jacobian::{self, Ctx};
-use super::layout::{self, BASE_COLOR, EMISSION, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, idx};
+use super::layout::{BASE_COLOR, EMISSION, EMISSION_GROUND, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, Split, idx};
 use super::linear::{self, paired_t};
+use super::paired::{MIN_GAIN, T_KEEP, l1, paired_renders, target};
 use super::pixels::{PixelSets, Sample};
 use super::roughness;
 use super::solve::{self, solve_options, solve_samples};
 use super::step_check;
 use super::{FitError, ObjectFitSettings, ObjectModel};
-use crate::blocks::RENDER_BLOCK;
 use crate::progress::check_stop;
 use crate::streams::{self, draw, key};
 use tracer::PixelRef;
 
-/// A term is kept when the paired t-statistic of its held-out improvement exceeds 3 (one-sided p ≈ 0.1 %:
-/// with tens of objects, a spurious acceptance is unlikely)…
-const T_KEEP: f64 = 3.0;
-/// …and the improvement is at least 0.5 % of the mean held-out |target| (a statistically clear but practically
-/// invisible gain does not justify extra parameters; on the glossy fixture the floor's lobe gains 4.2 % and
-/// the box's 12 %, while on it and on the default scene every diffuse wall's best lobe made the residual worse).
-const MIN_GAIN: f64 = 0.005;
 /// Linearisation point of the roughness search's (base colour, specular) solve: a mid-range lobe, so that
 /// the tracer samples the specular lobe and its Jacobian column is not zero.
 const TRIAL_SPECULAR: f64 = 0.5;
@@ -97,7 +94,9 @@ impl AveragedSteps {
             progress.set_position(u64::from(step));
         }
         for k in 0..x.len() / PER_OBJECT {
-            for p in (BASE_COLOR..BASE_COLOR + 3).chain(EMISSION..EMISSION + 3) {
+            for p in
+                (BASE_COLOR..BASE_COLOR + 3).chain(EMISSION..EMISSION + 3).chain(EMISSION_GROUND..EMISSION_GROUND + 3)
+            {
                 x[idx(k, p)] = sum[idx(k, p)] / n_avg;
             }
         }
@@ -148,39 +147,6 @@ fn lobe_differences(test: &[Sample], rows: &[usize], i_d: &[glam::Vec3], i_t: &[
             l1(target(t), i_d[j].as_dvec3().to_array()) - l1(target(t), i_t[j].as_dvec3().to_array())
         })
         .collect()
-}
-
-/// Two renders of the same pixels with the same random numbers (`key`), in blocks of [`RENDER_BLOCK`]
-/// pixels (a house's lobe test renders ~3·10⁵ pixels at `holdout_spp`, minutes per render), one progress step per block and arm in a phase `phase`. Random numbers are keyed by the pixel, so
-/// the blocks give exactly the values of one render of all the pixels.
-fn paired_renders(
-    ctx: &Ctx<'_>,
-    (a, b): (&tracer::Params, &tracer::Params),
-    pixels: &[PixelRef],
-    spp: u32,
-    key: u64,
-    progress: &dyn crate::Progress,
-    phase: &str,
-) -> Result<(Vec<glam::Vec3>, Vec<glam::Vec3>), FitError> {
-    let blocks = pixels.len().div_ceil(RENDER_BLOCK);
-    progress.phase(phase, 2 * blocks as u64, 0);
-    let (mut out_a, mut out_b) = (Vec::with_capacity(pixels.len()), Vec::with_capacity(pixels.len()));
-    for (i, block) in pixels.chunks(RENDER_BLOCK).enumerate() {
-        check_stop(progress)?;
-        out_a.extend(ctx.render(a, block, spp, key)?);
-        progress.set_position(2 * i as u64 + 1);
-        out_b.extend(ctx.render(b, block, spp, key)?);
-        progress.set_position(2 * i as u64 + 2);
-    }
-    Ok((out_a, out_b))
-}
-
-fn l1(a: [f64; 3], b: [f64; 3]) -> f64 {
-    (0..3).map(|c| (a[c] - b[c]).abs()).sum()
-}
-
-fn target(s: &Sample) -> [f64; 3] {
-    [f64::from(s.target.x), f64::from(s.target.y), f64::from(s.target.z)]
 }
 
 /// Whether a training pixel belongs to the half that chooses lobes (the other half tests them).
@@ -495,7 +461,7 @@ fn glimpse_test(
     // the pixels they light did not keep (walls given a faint emission by the lasso) stop here.
     let px: Vec<PixelRef> = own.iter().map(|t| t.pixel).collect();
     let against_lobe = if glimpse_gain(against_diffuse) {
-        let alt = layout::to_params(&best_lobe_without_emission(ctx, s, own, x, k)?);
+        let alt = ctx.params(&best_lobe_without_emission(ctx, s, own, x, k)?);
         Some(paired(&emission_test_arm(ctx, s, &alt, &px)?))
     } else {
         None
@@ -517,9 +483,10 @@ fn glimpse_gain((gain, t): (f64, f64)) -> bool {
     t > T_KEEP && gain > MIN_OWN_GAIN
 }
 
-/// Decides every object's model; returns the final parameters and the decisions. Reports its phases to
-/// `progress`: the lobe searches (one step per object), the lobe test (blocks of its pixels), the closing
-/// re-fits (one step per Gauss–Newton step) and the emission test (one step per emitter).
+/// Decides every object's model; returns the final parameters, the decisions and the emitters split at the
+/// horizon ([`horizon`], the last step). Reports its phases to `progress`: the lobe searches (one step per
+/// object), the lobe test (blocks of its pixels), the closing re-fits (one step per Gauss–Newton step), the
+/// emission test (one step per emitter) and the horizon test.
 pub fn choose_models(
     ctx: &Ctx<'_>,
     s: &ObjectFitSettings,
@@ -527,7 +494,7 @@ pub fn choose_models(
     x_fit: &[f64],
     free: &[bool],
     progress: &dyn crate::Progress,
-) -> Result<(Vec<f64>, Vec<ObjectModel>), FitError> {
+) -> Result<(Vec<f64>, Vec<ObjectModel>, Split), FitError> {
     let k_count = x_fit.len() / PER_OBJECT;
     let mut x = x_fit.to_vec();
     // Without held-out pixels (holdout_fraction = 0) the tests run on training pixels, within the same budget
@@ -617,7 +584,7 @@ pub fn choose_models(
         for rows in &mut rows_of {
             rows.sort_by(|&a, &b| order_rank(&lobe_test[a]).total_cmp(&order_rank(&lobe_test[b])).then(a.cmp(&b)));
         }
-        let (params_d, params_t) = (layout::to_params(&x), layout::to_params(&xt));
+        let (params_d, params_t) = (ctx.params(&x), ctx.params(&xt));
         let mut i_d = vec![glam::Vec3::ZERO; lobe_test.len()];
         let mut i_t = vec![glam::Vec3::ZERO; lobe_test.len()];
         let mut open: Vec<usize> = (0..k_count).filter(|&k| free[k] && !rows_of[k].is_empty()).collect();
@@ -728,7 +695,7 @@ pub fn choose_models(
     // arrives, while testing on the pilot's own noisy columns dropped hidden lights (a house's uplights,
     // t < 3 against 171 k pixels at 1.5 paths each). The pixels are chosen with the pilot's random numbers
     // and tested with fresh ones.
-    let params = layout::to_params(&x);
+    let params = ctx.params(&x);
     let emitters: Vec<usize> = (0..k_count).filter(|&k| (0..3).any(|c| x[idx(k, EMISSION + c)] != 0.0)).collect();
     progress.phase(
         &format!("model selection: emission test on {} pixels, emitter", pix.len()),
@@ -756,6 +723,10 @@ pub fn choose_models(
     }
     let mut model = ModelArm { params: &params, at: std::collections::HashMap::new() };
     let mut emits = vec![false; k_count];
+    // The test rows an emitter's light reaches, kept for the horizon test of the kept emitters that face
+    // sideways (`horizon`).
+    let sided = horizon::sided(ctx);
+    let mut horizon_lit: Vec<Vec<usize>> = vec![Vec::new(); k_count];
     let mut material_refit = false;
     let mut tested = 0;
     for k in 0..k_count {
@@ -907,7 +878,7 @@ pub fn choose_models(
                     std::array::from_fn(|c| w[c] + col[c] * delta[c])
                 })
                 .collect();
-            let alt = arm_on(&layout::to_params(&x_alt), &own_px)?;
+            let alt = arm_on(&ctx.params(&x_alt), &own_px)?;
             let mean_own = own_tgt.iter().map(|t| l1(*t, [0.0; 3])).sum::<f64>() / own_rows.len() as f64;
             let mean_own = mean_own.max(f64::MIN_POSITIVE);
             let paired = |a: &[[f64; 3]], b: &[[f64; 3]]| {
@@ -1040,6 +1011,9 @@ pub fn choose_models(
                 -100.0 * rel
             ));
         }
+        if emits[k] && sided[k] {
+            horizon_lit[k] = lit;
+        }
     }
     progress.set_position(tested);
     for k in (0..k_count).filter(|&k| !emits[k]) {
@@ -1047,25 +1021,41 @@ pub fn choose_models(
             x[idx(k, EMISSION + c)] = 0.0;
         }
     }
-    if material_refit {
-        // A dropped emission had been standing in for albedo: re-fit emission and base colour under the chosen
-        // model (non-emitters pinned at 0), averaging the steps' second half like the refinement.
+    // Emitters that face sideways may send their light one way down and another up (`horizon`): the re-fit
+    // below runs with every candidate split, then each is tested.
+    let all = horizon::candidates(ctx, sets, &horizon_lit, &mut x, &emits);
+    let ctx_all = Ctx { split: &all, ..*ctx };
+    if material_refit || !all.is_empty() {
+        // A dropped emission had been standing in for albedo, or the albedos were fitted under uniform emitters
+        // that the horizon test may split: re-fit emission and base colour under the chosen model
+        // (non-emitters pinned at 0), averaging the steps' second half like the refinement.
         let no_emission: Vec<bool> = emits.iter().map(|e| !e).collect();
         let run = AveragedSteps {
             unknowns: Unknowns::EmissionAndBaseColor,
             steps: s.refine_steps.max(2),
             key: key::SELECT_EMISSION_REFIT,
         };
-        progress.phase("model selection: re-fit after a dropped emission, step", u64::from(run.steps), 0);
-        run.apply(ctx, s, sets, &mut x, free, &no_emission, progress)?;
+        let why_refit = match (material_refit, all.is_empty()) {
+            (true, true) => "a dropped emission",
+            (false, _) => "splitting emitters at the horizon",
+            (true, false) => "a dropped emission, with emitters split at the horizon",
+        };
+        progress.phase(&format!("model selection: re-fit after {why_refit}, step"), u64::from(run.steps), 0);
+        run.apply(&ctx_all, s, sets, &mut x, free, &no_emission, progress)?;
         // The re-fit may take a kept emission to 0 (the solve's bounds): its model then has none.
         for k in 0..k_count {
-            if emits[k] && (0..3).all(|c| x[idx(k, EMISSION + c)] == 0.0) {
+            let ground_dark = !all.of(k) || (0..3).all(|c| x[idx(k, EMISSION_GROUND + c)] == 0.0);
+            if emits[k] && (0..3).all(|c| x[idx(k, EMISSION + c)] == 0.0) && ground_dark {
                 emits[k] = false;
                 why[k].push("the re-fit after a dropped emission set this emission to 0".into());
             }
         }
     }
+    let split = if all.is_empty() {
+        all
+    } else {
+        horizon::test(&ctx_all, s, (test, test_name), &horizon_lit, &mut x, &mut why, progress)?
+    };
     let models = (0..k_count)
         .map(|k| {
             let mut reasons = why[k].clone();
@@ -1091,7 +1081,7 @@ pub fn choose_models(
             ObjectModel { model: model.into(), why: reasons.join("; "), constrained: free[k] }
         })
         .collect();
-    Ok((x, models))
+    Ok((x, models, split))
 }
 
 #[cfg(test)]

@@ -67,7 +67,8 @@ pub struct ObjectFitSettings {
     /// Fraction of the valid pixels held out from every fit, used only to decide each object's model.
     pub holdout_fraction: f64,
     /// Largest number of held-out pixels per object, of pixels in an object's lobe test and of test pixels in
-    /// an emitter's emission test: the decisions need a sample of fixed size, not a fraction of the photos.
+    /// an emitter's emission and horizon tests: the decisions need a sample of fixed size, not a fraction of
+    /// the photos.
     pub holdout_pixels: u32,
     /// Largest number of training pixels kept per object (and of those that see no object), a uniform sample
     /// of its pixels; every draw over the training pixels still draws over all of them, each kept pixel

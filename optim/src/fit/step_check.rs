@@ -86,7 +86,7 @@ pub fn check_step(
     let residuals = |values: &[glam::Vec3], c: usize| -> Vec<f64> {
         draw.samples.iter().zip(values).map(|(s, v)| f64::from(s.target[c]) - f64::from(v[c])).collect()
     };
-    let v0 = ctx.render(&layout::to_params(start), &pixels, spp, key)?;
+    let v0 = ctx.render(&ctx.params(start), &pixels, spp, key)?;
     let r0: [Vec<f64>; 3] = std::array::from_fn(|c| residuals(&v0, c));
     // The solve's corners: per object, no smaller than the solve's floor for the channel.
     let corners: [Vec<f64>; 3] = std::array::from_fn(|c| {
@@ -121,7 +121,7 @@ pub fn check_step(
     let mut rounds = 0;
     loop {
         place(x, &fractions);
-        let v = ctx.render(&layout::to_params(x), &pixels, spp, key)?;
+        let v = ctx.render(&ctx.params(x), &pixels, spp, key)?;
         let l1 = per_row(&std::array::from_fn(|c| residuals(&v, c)));
         let loss_taken = l1.iter().sum::<f64>() / (3 * m.max(1)) as f64;
         let diff: Vec<f64> = l1.iter().zip(&l0).map(|(a, b)| a - b).collect();

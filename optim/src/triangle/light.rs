@@ -106,7 +106,14 @@ fn solve_light(
         slot[o] = i;
     }
     let counter = SampleCounter::default();
-    let ctx = Ctx { scene, cameras: inputs.cameras, settings: inputs.tracer, seed: cfg.seed, samples: &counter };
+    let ctx = Ctx {
+        scene,
+        cameras: inputs.cameras,
+        settings: inputs.tracer,
+        seed: cfg.seed,
+        samples: &counter,
+        split: &crate::fit::layout::NO_SPLIT,
+    };
     let params = state.params();
     let spp = s.solve_spp.max(1);
     // Per pixel: the emitters' and the scales' Jacobian entries, reduced from the pixel's sparse per-triangle
@@ -447,7 +454,11 @@ fn fit_change(
         work.add(&stats);
         Ok(v)
     };
-    let before = render(&tracer::Params { materials: materials.to_vec(), emission: emission.to_vec() })?;
+    let before = render(&tracer::Params {
+        materials: materials.to_vec(),
+        emission: emission.to_vec(),
+        horizon: state.horizon.clone(),
+    })?;
     let after = render(&state.params())?;
     let l1 = |s: &TriSample, v: &Vec3| f64::from((s.target - *v).abs().element_sum()) / 3.0;
     let d: Vec<f64> = chosen.iter().zip(before.iter().zip(&after)).map(|(s, (b, a))| l1(s, a) - l1(s, b)).collect();

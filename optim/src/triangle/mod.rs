@@ -126,8 +126,11 @@ pub struct TriangleState {
     pub face_object: Vec<u32>,
     /// Per triangle.
     pub materials: Vec<tracer::Material>,
-    /// Per object.
+    /// Per object, then the ground half of every emitter split at the horizon (`horizon`).
     pub emission: Vec<Vec3>,
+    /// Emitters split at the horizon (`tracer::params::Horizon`; none in results written before splits).
+    #[serde(default)]
+    pub horizon: tracer::params::Horizon,
     /// Rounds finished (a round = one fit, followed by one split unless it is the last).
     pub rounds_done: u32,
     pub log: Vec<RoundRecord>,
@@ -262,6 +265,7 @@ impl TriangleState {
         Ok(Self {
             materials: face_object.iter().map(|&o| params.materials[o as usize]).collect(),
             emission: params.emission.clone(),
+            horizon: params.horizon.clone(),
             positions,
             normals,
             triangles,
@@ -285,7 +289,24 @@ impl TriangleState {
     /// The tracer's parameter tables for [`TriangleState::scene`].
     #[must_use]
     pub fn params(&self) -> tracer::Params {
-        tracer::Params { materials: self.materials.clone(), emission: self.emission.clone() }
+        tracer::Params {
+            materials: self.materials.clone(),
+            emission: self.emission.clone(),
+            horizon: self.horizon.clone(),
+        }
+    }
+
+    /// Per object (`objects` entries): the uniform radiance of the same flux as its emission, the same as
+    /// its emission unless it is split at the horizon (`tracer::Params::uniform_emission`).
+    #[must_use]
+    pub fn uniform_emission(&self, objects: usize) -> Vec<Vec3> {
+        let tris = self.triangles.iter().zip(&self.face_object).map(|(t, &o)| {
+            let [a, b, c] = t.map(|i| self.positions[i as usize]);
+            // The front face's normal as the tracer's scene builds it.
+            let cr = (b - a).cross(c - a);
+            (o, 0.5 * f64::from(cr.length()), cr.normalize_or_zero())
+        });
+        self.params().uniform_emission(&tracer::scene::upward_shares(self.horizon.up, objects, tris))
     }
 
     /// Triangles of each object (`objects` entries).

@@ -1,5 +1,6 @@
 """`python -m corpus` (run by `scripts/corpus`): build, score, generate and list the corpus scenes; re-render a
-`lab synth` scan with Mitsuba; upsample a scan's photos (its timing variant at a scanner's resolution)."""
+`lab synth` scan with Mitsuba; upsample a scan's photos (its timing variant at a scanner's resolution);
+compare window-pane models on a daylit scan."""
 from __future__ import annotations
 
 import argparse
@@ -43,6 +44,11 @@ def main(argv=None) -> int:
     u.add_argument("scan_dir", type=Path)
     u.add_argument("out_dir", type=Path)
     u.add_argument("--factor", type=int, default=8, help="integer upsampling factor (default 8: 160×128 → 1280×1024)")
+    p = sub.add_parser("panes", help="per object, the light of uniform and horizon-split window panes against the photos")
+    p.add_argument("scan_dir", type=Path)
+    p.add_argument("--spp", type=int, default=64)
+    p.add_argument("--views", type=int, default=18)
+    p.add_argument("--threads", type=int, default=2)
     sub.add_parser("list", help="the scene names")
     a = ap.parse_args(argv)
 
@@ -86,6 +92,15 @@ def main(argv=None) -> int:
         t = time.time()
         n = upsample(a.scan_dir, a.out_dir, a.factor)
         print(f"{n} photos of {a.scan_dir} upsampled {a.factor}x into {a.out_dir} in {time.time() - t:.1f} s")
+        return 0
+    if a.cmd == "panes":
+        from .panes import compare
+
+        rows = compare(a.scan_dir, a.spp, a.views, a.threads)
+        print("| object | pixels | split / photos (RGB) | uniform / photos (RGB) |\n|---|---:|---|---|")
+        for r in rows:
+            fmt = lambda v: " ".join(f"{x:.3f}" for x in v)  # noqa: E731
+            print(f"| {r['object']} | {r['pixels']} | {fmt(r['split'])} | {fmt(r['uniform'])} |")
         return 0
     if a.cmd == "score":
         from . import score

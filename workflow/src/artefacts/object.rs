@@ -17,8 +17,9 @@ pub use super::checkpoint::CHECKPOINT_FILE;
 pub const MATERIALS_FILE: &str = "materials.json";
 /// The trajectory's file name.
 pub const HISTORY_FILE: &str = "history.json";
-/// Format tag of `checkpoint.json`.
-pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/1";
+/// Format tag of `checkpoint.json` (2: 12 parameters per object, the ground half of an emission split at the
+/// horizon among them; a checkpoint of 1 is not resumed).
+pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/2";
 /// The measured tone-curve exponent's file name.
 pub const PHOTOMETRIC_FILE: &str = "photometric.json";
 /// Format tag of `photometric.json`.

@@ -7,8 +7,8 @@
 //!   (index into the ingested object list) and `float base_color_r base_color_g base_color_b roughness
 //!   metallic specular`. Binary floats round-trip exactly; the house-sized scan's result takes 28 MB here,
 //!   against 168 MB as pretty JSON (docs/scale/README.md, "The run's disk cache").
-//! - `result.json` — `{"format": "ipt-triangle/2", "vertices", "triangles", "emission", "rounds_done",
-//!   "log"}` ([`ResultFile`]): what is not per triangle, and the mesh's counts, checked on reading. Written after the mesh, so a `result.json` only exists beside a complete `mesh.ply`.
+//! - `result.json` — `{"format": "ipt-triangle/2", "vertices", "triangles", "emission", "horizon",
+//!   "rounds_done", "log"}` ([`ResultFile`]): what is not per triangle, and the mesh's counts, checked on reading. Written after the mesh, so a `result.json` only exists beside a complete `mesh.ply`.
 //! - `checkpoint.json` while the stage runs (format `ipt-triangle-checkpoint/1`, [`super::checkpoint`]).
 
 use std::path::{Path, PathBuf};
@@ -41,8 +41,11 @@ pub struct ResultFile {
     /// Vertex and triangle counts of the mesh ([`MESH_FILE`], beside this file).
     pub vertices: usize,
     pub triangles: usize,
-    /// Per object.
+    /// Per object, then the ground half of every emitter split at the horizon.
     pub emission: Vec<Vec3>,
+    /// The emitters split at the horizon (absent in results written before splits: none).
+    #[serde(default)]
+    pub horizon: tracer::params::Horizon,
     pub rounds_done: u32,
     pub log: Vec<RoundRecord>,
 }
@@ -81,6 +84,7 @@ pub fn write_result(dir: &Path, state: &TriangleState) -> Result<Vec<PathBuf>, S
         vertices: state.positions.len(),
         triangles: state.triangles.len(),
         emission: state.emission.clone(),
+        horizon: state.horizon.clone(),
         rounds_done: state.rounds_done,
         log: state.log.clone(),
     };
@@ -141,7 +145,9 @@ pub fn read_result(run_dir: &Path) -> Result<Option<TriangleState>, StageError> 
         f32_col(FACE_COLUMNS[5])?,
         f32_col(FACE_COLUMNS[6])?,
     ];
-    let face_object = super::face_objects(&ply, r.emission.len(), &mesh_path, RESULT_FILE)?;
+    // The objects' own entries come first; the ground halves of split emitters follow them.
+    let objects = r.emission.len().saturating_sub(r.horizon.ground.iter().flatten().count());
+    let face_object = super::face_objects(&ply, objects, &mesh_path, RESULT_FILE)?;
     let materials = (0..r.triangles)
         .map(|t| tracer::Material {
             base_color: Vec3::new(r_[t], g[t], b[t]),
@@ -157,6 +163,7 @@ pub fn read_result(run_dir: &Path) -> Result<Option<TriangleState>, StageError> 
         face_object,
         materials,
         emission: r.emission,
+        horizon: r.horizon,
         rounds_done: r.rounds_done,
         log: r.log,
     }))
@@ -179,7 +186,9 @@ mod tests {
             triangles: vec![[0, 1, 2], [1, 3, 2]],
             face_object: vec![1, 0],
             materials: vec![m(0.123_456_79), m(0.987_654_3)],
-            emission: vec![Vec3::ZERO, Vec3::new(3.0, 2.0, 1.0)],
+            // Object 1 is split at the horizon: its ground half is the entry after the objects'.
+            emission: vec![Vec3::ZERO, Vec3::new(3.0, 2.0, 1.0), Vec3::new(0.5, 0.4, 0.3)],
+            horizon: tracer::params::Horizon { up: Vec3::Z, ground: vec![None, Some(2)] },
             rounds_done: 2,
             log: Vec::new(),
         }

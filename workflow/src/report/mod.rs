@@ -282,6 +282,7 @@ mod tests {
                 model: "diffuse".into(),
                 why: None,
                 constrained: Some(false),
+                horizon: None,
             }],
             why: vec!["because".into()],
             notes: vec![],

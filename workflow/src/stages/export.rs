@@ -199,7 +199,10 @@ pub fn export_mesh(
                     message: format!("triangle {t}: object {} of {}", st.face_object[t], ids.len()),
                 });
             }
-            let emission: Vec<glam::Vec3> = st.face_object.iter().map(|&o| st.emission[o as usize]).collect();
+            // Mesh formats carry one radiance per triangle: an emitter split at the horizon gets the uniform
+            // one of the same flux.
+            let per_object = st.uniform_emission(ids.len());
+            let emission: Vec<glam::Vec3> = st.face_object.iter().map(|&o| per_object[o as usize]).collect();
             let segment_id: Vec<i32> = st.face_object.iter().map(|&o| segment(o)).collect();
             let grids = match detail {
                 Some(req) if req.settings.max_texels > 0 => {
@@ -221,8 +224,10 @@ pub fn export_mesh(
         }
         None => {
             let path = run_dir.join("object").join(MATERIALS_FILE);
-            let params = read_result(run_dir)?.params_for(&ids, &path)?;
-            let per = expand_per_object(&scene_data.face_object, &ids, &params.materials, &params.emission)?;
+            let result = read_result(run_dir)?;
+            let params = result.params_for(&ids, &path)?;
+            let uniform = result.uniform_emission_for(&ids, &path)?;
+            let per = expand_per_object(&scene_data.face_object, &ids, &params.materials, &uniform)?;
             let input = ExportInput {
                 positions: &scene_data.positions,
                 triangles: &scene_data.triangles,

@@ -11,7 +11,7 @@
 //! - `history.json` — `{"format": "ipt-object-history/1", "history": [...], "why": [...], "traced_paths",
 //!   "discarded_samples"}`: the fit's per-iteration trajectory, each object's model decision, and how many
 //!   path samples the fit traced and how many of them the tracer discarded as non-finite;
-//! - `checkpoint.json` while the stage runs — `{"format": "ipt-object-checkpoint/1", "config_sha256",
+//! - `checkpoint.json` while the stage runs — `{"format": "ipt-object-checkpoint/2", "config_sha256",
 //!   "inputs_sha256", "state"}`, rewritten atomically at every checkpoint the fit hands out and deleted once
 //!   the outputs above are written. A rerun resumes from it only when both hashes match the current run
 //!   (same config section, same inputs), so a stale checkpoint is never mixed into a different fit.
@@ -27,7 +27,7 @@ use crate::artefacts::object::{
 use crate::artefacts::preprocess::{CalibrationFile, Prepared, raise_to_exponent};
 use crate::atomic_file::write_json_atomic;
 use crate::config::profile_name;
-use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
+use crate::materials::{HorizonEmission, MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
 use crate::stage_contract::{StageContext, StageError};
 use optim::fit::{FitError, FitInputs, FitMode, FitOutcome, FitState, ObjectDesc};
 use optim::photometric::NextExponent;
@@ -116,7 +116,9 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             plan.object.train_pool as usize,
             plan.object.seed,
         );
-        let (emitters, shares) = optim::photometric::comparison_emitters(&first.params.emission, &sets);
+        // The objects' own emission entries (a split emitter's sky half; its ground half follows the objects').
+        let own = &first.params.emission[..objects.len().min(first.params.emission.len())];
+        let (emitters, shares) = optim::photometric::comparison_emitters(own, &sets);
         let record: Vec<SearchEmitter> = shares
             .iter()
             .map(|e| SearchEmitter {
@@ -193,6 +195,14 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         ctx.note(&format!("photos raised to the exponent {exponent:.3} for the final fit and every later stage"));
     }
 
+    // An emitter split at the horizon is written with both halves and, as its `emission`, the uniform radiance
+    // of the same flux (the materials.json schema).
+    let horizon = &outcome.params.horizon;
+    let uniform = if horizon.ground.iter().any(Option::is_some) {
+        outcome.params.uniform_emission(&scene.upward_shares(horizon.up))
+    } else {
+        outcome.params.emission.clone()
+    };
     let materials = MaterialsFile {
         format: MATERIALS_FORMAT.into(),
         emission_profile: plan.tracer.emission_profile,
@@ -201,7 +211,12 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             .enumerate()
             .map(|(i, o)| {
                 let m = outcome.params.materials[i];
-                let e = outcome.params.emission[i];
+                let e = uniform[i];
+                let split = horizon.ground_of(i as u32).map(|g| HorizonEmission {
+                    up: horizon.up.to_array(),
+                    sky: outcome.params.emission[i].to_array(),
+                    ground: outcome.params.emission[g as usize].to_array(),
+                });
                 ObjectMaterial {
                     id: o.id,
                     label: o.label.clone(),
@@ -214,6 +229,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
                     model: outcome.per_object.get(i).map(|p| p.model.clone()).unwrap_or_default(),
                     why: outcome.per_object.get(i).map(|p| p.why.clone()),
                     constrained: outcome.per_object.get(i).map(|p| p.constrained),
+                    horizon: split,
                 }
             })
             .collect(),

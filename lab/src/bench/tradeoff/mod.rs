@@ -233,6 +233,7 @@ pub fn run(opts: &TradeoffOptions) -> Result<Vec<Row>, BenchError> {
                     let light = tracer::Params {
                         materials: run.fit.outcome.params.materials.clone(),
                         emission: t.state.emission.clone(),
+                        horizon: Default::default(),
                     };
                     let cols = TriangleColumns {
                         seconds: t.seconds,

@@ -1,0 +1,266 @@
+//! Emitters split at the horizon: the last decision of model selection. An emitter that faces sideways — a
+//! window pane above all — may send one radiance down and level (the sky's half: light that came from above
+//! the horizon outside) and another up (the ground's half), as [`tracer::params::Horizon`] renders it.
+//!
+//! A uniform pane sends the sky's light everywhere: the ceiling gets the light that in truth falls on the
+//! floor, so the fit darkens the ceiling and brightens the floor to match the photos. Under Daylight Room's
+//! sky, rendered by Mitsuba with its panes replaced by uniform emitters of the right flux, the ceiling
+//! receives 1.36–1.93× its true light and the floor 0.80–0.95×; with the two halves each of the right flux,
+//! every surface is within 0.95–1.09× (docs/realistic/README.md, "Window panes: one radiance or two").
+//!
+//! The step, after the emission test:
+//! 1. **Up** is the cameras' mean up axis ([`world_up`]): photos are taken upright, tilted up and down
+//!    about as often, so the mean points up whatever the scan's own axes.
+//! 2. **Candidates** are the kept emitters with at least [`MIN_SIDE`] of their cosine-weighted emission on
+//!    each side of the horizon (`tracer::Scene::upward_shares`; a ceiling panel sends all of it down and has
+//!    nothing to split) that the photos see from both sides of it: each half is fitted where it is seen.
+//! 3. **Fit** (by model selection, `super::select`): every candidate split, its ground half starting at its
+//!    emission, emission and base colour are re-fitted together, as after a dropped emission (the albedos
+//!    were fitted under the uniform emitters' light; with them fixed, a sideways lamp's upward half took the
+//!    light the ceiling's too-dark albedo missed, 1.7× its truth on `data-fixtures/scenes/window.toml`).
+//! 4. **Test**, per candidate: the solved model with every candidate split against the same model with this
+//!    candidate joined again (one radiance of the same flux), rendered with the same random numbers on the
+//!    test pixels its light reaches (at most `object.holdout_pixels`): it keeps its split when the paired t of
+//!    its pixels' L1 gain exceeds the lobe test's threshold and the gain its minimum share of their mean
+//!    radiance. A lamp whose light is the same
+//!    up and down gains nothing and keeps one radiance.
+//! 5. A candidate not kept is **joined** again, into the one radiance of the same flux as its halves; the
+//!    re-fit's albedos stay (its split did not change the light the photos show by a significant amount).
+
+use super::jacobian::Ctx;
+use super::layout::{EMISSION, EMISSION_GROUND, Split, idx};
+use super::linear::paired_t;
+use super::paired::{MIN_GAIN, T_KEEP, l1, paired_renders, target};
+use super::pixels::{PixelSets, Sample};
+use super::{FitError, ObjectFitSettings};
+use crate::progress::check_stop;
+use crate::streams::{self, draw, key};
+use glam::Vec3;
+use tracer::PixelRef;
+
+/// Share of an emitter's cosine-weighted emission that must leave on each side of the horizon for it to be
+/// split: below 5 % one half lights almost nothing the photos see (its column is mostly noise). A ceiling panel
+/// (share 0) is never a candidate, nor one tilted by less than 26° from horizontal (share (1 − cos 26°)/2 ≈
+/// 0.05 on its far side); a vertical pane has 0.5 on each side.
+pub const MIN_SIDE: f64 = 0.05;
+
+/// The cameras' mean up axis (camera +y in world), normalised; None when the cameras give none (their up
+/// axes cancel).
+#[must_use]
+pub fn world_up(cameras: &[tracer::Camera]) -> Option<Vec3> {
+    let sum =
+        cameras.iter().fold(glam::DVec3::ZERO, |acc, c| acc + Vec3::from(c.cam_to_world.matrix3.y_axis).as_dvec3());
+    // 1e-6 of the camera count: far below any real set of upright photos (whose sum is of the order of their
+    // count), where a sum that small is round-off of axes that cancel.
+    (sum.length() > 1e-6 * cameras.len() as f64).then(|| sum.normalize().as_vec3())
+}
+
+/// The up axis a split uses: the cameras' ([`world_up`]), under the uniform emission profile only (the
+/// halves' shares of an emitter's flux are those of a uniform emitter; the cosine profile weighs directions
+/// otherwise).
+fn split_up(ctx: &Ctx<'_>) -> Option<Vec3> {
+    let uniform = ctx.settings.emission_profile == tracer::EmissionProfile::Uniform;
+    world_up(ctx.cameras).filter(|_| uniform)
+}
+
+/// Per object: whether it would be a candidate if it emitted (its emission reaches both sides of the horizon,
+/// [`MIN_SIDE`]); all false without an up axis ([`split_up`]). Model selection keeps the test rows of these
+/// objects' light only.
+#[must_use]
+pub(super) fn sided(ctx: &Ctx<'_>) -> Vec<bool> {
+    let Some(up) = split_up(ctx) else {
+        return vec![false; ctx.scene.emitter_slots()];
+    };
+    let share = ctx.scene.upward_shares(up);
+    (0..share.len()).map(|k| is_candidate(&share, k)).collect()
+}
+
+/// Whether object k sends at least [`MIN_SIDE`] of its emission to each side of the horizon.
+fn is_candidate(share: &[f64], k: usize) -> bool {
+    share.get(k).is_some_and(|u| (MIN_SIDE..=1.0 - MIN_SIDE).contains(u))
+}
+
+/// Step 2 of the module docs: every kept emitter (`emits`) that sends enough of its emission to each side of
+/// the horizon, that the training photos see from each side in at least [`super::solve::MIN_PIXELS`] pixels
+/// ([`seen_from_each_side`]), and whose light reaches at least two test rows (`lit[k]`), split, with its ground
+/// half set in `x` to its emission (the split model starts where the uniform one is). None when the cameras
+/// give no up axis or no emitter qualifies.
+pub(super) fn candidates(ctx: &Ctx<'_>, sets: &PixelSets, lit: &[Vec<usize>], x: &mut [f64], emits: &[bool]) -> Split {
+    let k_count = emits.len();
+    let Some(up) = split_up(ctx) else {
+        return Split { up: Vec3::ZERO, split: vec![false; k_count] };
+    };
+    let share = ctx.scene.upward_shares(up);
+    let wanted: Vec<bool> =
+        (0..k_count).map(|k| emits[k] && is_candidate(&share, k) && lit.get(k).is_some_and(|l| l.len() >= 2)).collect();
+    let seen = seen_from_each_side(ctx, sets, up, &wanted);
+    let split: Vec<bool> = (0..k_count).map(|k| wanted[k] && seen[k]).collect();
+    for k in (0..k_count).filter(|&k| split[k]) {
+        for c in 0..3 {
+            x[idx(k, EMISSION_GROUND + c)] = x[idx(k, EMISSION + c)];
+        }
+    }
+    Split { up, split }
+}
+
+/// Per object with `wanted[k]`: whether the training pixels see it from above its horizon (the ground half's
+/// directions, ω·up > 0 from the surface to the camera) and from below it, in at least
+/// [`super::solve::MIN_PIXELS`] pixels each — the threshold under which an object's material counts as
+/// unconstrained. A half no photo sees is left to the light it sends alone, and in the re-fit such a half ran
+/// away: on Modern Hall a lamp seen in 3 pixels took a sky half of 1393 / 32 / 1.4 for a truth of 1.5.
+fn seen_from_each_side(ctx: &Ctx<'_>, sets: &PixelSets, up: Vec3, wanted: &[bool]) -> Vec<bool> {
+    let mut sides = vec![[0usize; 2]; wanted.len()];
+    for t in &sets.train {
+        let Some(k) = t.object.map(|o| o as usize).filter(|&k| wanted.get(k).copied().unwrap_or(false)) else {
+            continue;
+        };
+        let camera = &ctx.cameras[t.pixel.view as usize];
+        let (_, dir) = camera.ray(glam::Vec2::new(t.pixel.x as f32, t.pixel.y as f32));
+        // The direction from the surface to the camera is −dir.
+        sides[k][usize::from(-dir.dot(up) > 0.0)] += 1;
+    }
+    sides.iter().map(|s| s.iter().all(|&n| n >= super::solve::MIN_PIXELS)).collect()
+}
+
+/// Step 4 of the module docs on `x`, fitted with every candidate of `all` split (`ctx` carries that split),
+/// testing on `test` (the held-out pixels, or capped training pixels when there are none: `test_name` says
+/// which) of which `lit[k]` are the rows that candidate k's light reaches. Returns the kept splits; every
+/// candidate not kept is joined again in `x` (one radiance of the same flux as its halves), and each
+/// candidate's reason is added to `why`.
+pub(super) fn test(
+    ctx: &Ctx<'_>,
+    s: &ObjectFitSettings,
+    (test, test_name): (&[Sample], &str),
+    lit: &[Vec<usize>],
+    x: &mut [f64],
+    why: &mut [Vec<String>],
+    progress: &dyn crate::Progress,
+) -> Result<Split, FitError> {
+    let all = ctx.split;
+    let (up, k_count) = (all.up, all.split.len());
+    let share = ctx.scene.upward_shares(up);
+    let candidates: Vec<usize> = (0..k_count).filter(|&k| all.of(k)).collect();
+    let x_all = x.to_vec();
+
+    // Each candidate's test rows: at most `holdout_pixels` of those its light reaches, in a seeded order. On
+    // them the model with every candidate split is rendered against the same model with this candidate alone
+    // joined again (one radiance of the same flux as its two halves): the difference is its own split's, given
+    // the others'. (With no split in the other arm, a sideways lamp would be credited with the windows' gain on
+    // the rows it shares with them; with only its own split in one arm, a window's gain would be masked by the
+    // others' light fitted without theirs.)
+    let budget = s.holdout_pixels as usize;
+    let rank = |j: usize| streams::uniform(ctx.seed, draw::HORIZON_TEST_ORDER, streams::pixel_key(test[j].pixel), 0);
+    let split_all = ctx.params(&x_all);
+    let mut kept = Split { up, split: vec![false; k_count] };
+    for (n, &k) in candidates.iter().enumerate() {
+        check_stop(progress)?;
+        let mut rows = lit[k].clone();
+        rows.sort_by(|&a, &b| rank(a).total_cmp(&rank(b)).then(a.cmp(&b)));
+        rows.truncate(budget);
+        let pix: Vec<PixelRef> = rows.iter().map(|&j| test[j].pixel).collect();
+        let mut x_k = x_all.clone();
+        join(&mut x_k, k, share[k]);
+        let but_k = Split { up, split: (0..k_count).map(|o| o != k && all.of(o)).collect() };
+        let (a, b) = paired_renders(
+            ctx,
+            (&but_k.params(&x_k), &split_all),
+            &pix,
+            s.holdout_spp,
+            key::SELECT_HORIZON_TEST,
+            progress,
+            &format!(
+                "model selection: horizon test, emitter {}/{} ({} pixels), block",
+                n + 1,
+                candidates.len(),
+                pix.len()
+            ),
+        )?;
+        let d: Vec<f64> = rows
+            .iter()
+            .enumerate()
+            .map(|(i, &j)| {
+                let t = target(&test[j]);
+                l1(t, a[i].as_dvec3().to_array()) - l1(t, b[i].as_dvec3().to_array())
+            })
+            .collect();
+        let (gain, t) = paired_t(&d);
+        let mean = rows.iter().map(|&j| l1(target(&test[j]), [0.0; 3])).sum::<f64>() / rows.len() as f64;
+        let rel = gain / mean.max(f64::MIN_POSITIVE);
+        let half = |at: usize| -> [f64; 3] { std::array::from_fn(|c| x_all[idx(k, at + c)]) };
+        let fitted = format!(
+            "split at the horizon ({:.0} % of its emission upward), the sky half {:.4?} and the ground half {:.4?}",
+            100.0 * share[k],
+            half(EMISSION),
+            half(EMISSION_GROUND)
+        );
+        if t > T_KEEP && rel > MIN_GAIN {
+            kept.split[k] = true;
+            why[k].push(format!(
+                "emission {fitted}: the split lowers the {test_name} L1 of {} pixels its light reaches by {:.2} % \
+                 of their mean radiance (t = {t:.1})",
+                rows.len(),
+                100.0 * rel
+            ));
+        } else {
+            why[k].push(format!(
+                "one emission in every direction: {fitted} changes the {test_name} L1 of {} pixels its light \
+                 reaches by {:+.3} % (t = {t:.1}; needs t > {T_KEEP} and > {:.1} %)",
+                rows.len(),
+                -100.0 * rel,
+                100.0 * MIN_GAIN
+            ));
+        }
+    }
+    for &k in candidates.iter().filter(|&&k| !kept.of(k)) {
+        join(x, k, share[k]);
+    }
+    Ok(kept)
+}
+
+/// Object k's emission joined from its two halves into the one radiance of the same flux, (1 − u)·sky +
+/// u·ground with u its upward share (`tracer::Params::uniform_emission`), its ground entries cleared.
+fn join(x: &mut [f64], k: usize, u: f64) {
+    for c in 0..3 {
+        let (sky, ground) = (x[idx(k, EMISSION + c)], x[idx(k, EMISSION_GROUND + c)]);
+        x[idx(k, EMISSION + c)] = (1.0 - u) * sky + u * ground;
+        x[idx(k, EMISSION_GROUND + c)] = 0.0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cameras_mean_up_is_world_up_and_cancelling_axes_give_none() {
+        let cam = |up: Vec3| {
+            let fwd = if up.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+            let right = fwd.cross(up).normalize();
+            let m = glam::Mat3::from_cols(right, up, -fwd);
+            tracer::Camera::from_fov_y(4, 4, 1.0, glam::Affine3A::from_mat3(m))
+        };
+        // Tilted up and down by 30° about the horizontal: the mean is +z.
+        let (a, b) = (30f32.to_radians().sin(), 30f32.to_radians().cos());
+        let up = world_up(&[cam(Vec3::new(0.0, a, b)), cam(Vec3::new(0.0, -a, b))]).expect("an up axis");
+        assert!((up - Vec3::Z).length() < 1e-6, "{up}");
+        assert_eq!(world_up(&[cam(Vec3::Z), cam(-Vec3::Z)]), None);
+        assert_eq!(world_up(&[]), None);
+    }
+
+    #[test]
+    fn a_split_appends_one_ground_entry_per_split_object() {
+        let mut x = super::super::layout::initial(3);
+        for c in 0..3 {
+            x[idx(1, EMISSION_GROUND + c)] = 1.0 + c as f64;
+        }
+        let split = Split { up: Vec3::Z, split: vec![false, true, false] };
+        let p = split.params(&x);
+        assert_eq!(p.emission.len(), 4);
+        assert_eq!(p.emission[3], Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(p.horizon.ground, vec![None, Some(3), None]);
+        assert_eq!(Split::default().params(&x), super::super::layout::to_params(&x));
+        let share = [0.5, 0.0, 0.04, 0.96, 0.05];
+        let candidates: Vec<bool> = (0..share.len()).map(|k| is_candidate(&share, k)).collect();
+        assert_eq!(candidates, [true, false, false, false, true]);
+    }
+}
