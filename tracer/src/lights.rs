@@ -1,6 +1,6 @@
 //! Light selection for next-event estimation: a triangle is chosen with probability ∝ (mean RGB emission
-//! scale, over both halves of a slot split at the horizon) × area, i.e. ∝ its emitted power under either profile (the profile integral over the hemisphere,
-//! π or 2π/3, is the same constant for all triangles). Built per parameter set, so an object becomes a light
+//! scale, over both halves of a slot split at the horizon) × area, i.e. ∝ its emitted power under either
+//! profile (the profile integral over the hemisphere, π or 2π/3, is the same constant for all triangles). Built per parameter set, so an object becomes a light
 //! as soon as the optimiser gives it emission; triangles emitting nothing are never selected (their
 //! contribution is still found by BSDF sampling, with MIS weight 1).
 

@@ -95,9 +95,23 @@ impl Params {
         }
     }
 
+    /// Splits emitter slots at the horizon `up`: each `(slot, ground)` of `halves` appends `ground` as a new
+    /// emission entry, the slot's upward half (its own entry becomes its sky half). Expects a table with no
+    /// split yet, one emission entry per slot; with no halves it stays as it is.
+    pub fn split_at_horizon(&mut self, up: Vec3, halves: impl IntoIterator<Item = (u32, Vec3)>) {
+        let mut ground = vec![None; self.emission.len()];
+        for (slot, half) in halves {
+            ground[slot as usize] = Some(self.emission.len() as u32);
+            self.emission.push(half);
+        }
+        if ground.iter().any(Option::is_some) {
+            self.horizon = Horizon { up, ground };
+        }
+    }
+
     /// Per emitter slot (one per entry of `upward`, the slots' [`crate::scene::upward_shares`]): the radiance of a
-    /// uniform emitter that sends the same flux — (1 − u)·sky + u·ground for a split slot, its emission for
-    /// the others (exact for the uniform profile).
+    /// uniform emitter that sends the same flux — [`joined_halves`] for a split slot, its emission for the
+    /// others (exact for the uniform profile).
     #[must_use]
     pub fn uniform_emission(&self, upward: &[f64]) -> Vec<Vec3> {
         upward
@@ -106,7 +120,7 @@ impl Params {
             .map(|(slot, &u)| {
                 let own = self.emission.get(slot).copied().unwrap_or(Vec3::ZERO);
                 match self.horizon.ground_of(slot as u32).and_then(|g| self.emission.get(g as usize)) {
-                    Some(&ground) => ((1.0 - u) * own.as_dvec3() + u * ground.as_dvec3()).as_vec3(),
+                    Some(&ground) => joined_halves(own.as_dvec3(), ground.as_dvec3(), u).as_vec3(),
                     None => own,
                 }
             })
@@ -122,6 +136,14 @@ impl Params {
         }
         self.horizon.ground.iter().position(|&g| g == Some(entry)).map(|s| s as u32)
     }
+}
+
+/// The one radiance of the same flux as the halves `sky` and `ground` of an emitter split at the horizon that
+/// sends the share `upward` of its cosine-weighted emission upward: (1 − u)·sky + u·ground.
+#[inline]
+#[must_use]
+pub fn joined_halves(sky: DVec3, ground: DVec3, upward: f64) -> DVec3 {
+    (1.0 - upward) * sky + upward * ground
 }
 
 /// Directional profile of emitted radiance at a front-facing direction with cosine `cos` to the geometric

@@ -161,17 +161,14 @@ impl MaterialsFile {
             emission: objects.iter().map(|o| Vec3::from(o.horizon.map_or(o.emission, |h| h.sky))).collect(),
             horizon: Default::default(),
         };
-        let mut ground = vec![None; objects.len()];
-        for (k, o) in objects.iter().enumerate() {
-            if let Some(h) = &o.horizon {
-                ground[k] = Some(params.emission.len() as u32);
-                params.emission.push(Vec3::from(h.ground));
-                params.horizon.up = Vec3::from(h.up).normalize();
-            }
-        }
-        if ground.iter().any(Option::is_some) {
-            params.horizon.ground = ground;
-        }
+        // Every split object gives the same `up` (`read` checks it).
+        let up = objects.iter().find_map(|o| o.horizon).map_or(Vec3::ZERO, |h| Vec3::from(h.up).normalize());
+        let halves: Vec<(u32, Vec3)> = objects
+            .iter()
+            .enumerate()
+            .filter_map(|(k, o)| o.horizon.map(|h| (k as u32, Vec3::from(h.ground))))
+            .collect();
+        params.split_at_horizon(up, halves);
         Ok(params)
     }
 

@@ -167,17 +167,10 @@ pub fn build(desc: SceneDesc, path: &Path) -> Result<BuiltScene, SynthError> {
         emission: desc.objects.iter().map(|o| Vec3::from(o.emission)).collect(),
         horizon: Default::default(),
     };
-    if desc.objects.iter().any(|o| o.emission_ground.is_some()) {
-        // Emissions split at the horizon: each ground half is an entry after the objects' own.
-        let mut ground = vec![None; desc.objects.len()];
-        for (k, o) in desc.objects.iter().enumerate() {
-            if let Some(g) = o.emission_ground {
-                ground[k] = Some(params.emission.len() as u32);
-                params.emission.push(Vec3::from(g));
-            }
-        }
-        params.horizon = tracer::params::Horizon { up: Vec3::Z, ground };
-    }
+    // Emissions split at the horizon (world up +z): each ground half is an entry after the objects' own.
+    let halves =
+        desc.objects.iter().enumerate().filter_map(|(k, o)| o.emission_ground.map(|g| (k as u32, Vec3::from(g))));
+    params.split_at_horizon(Vec3::Z, halves);
     let mut cameras = Vec::with_capacity(desc.cameras.len());
     for (k, c) in desc.cameras.iter().enumerate() {
         let pose = matterport::look_at(c.eye.into(), c.target.into(), c.up.into()).ok_or_else(|| SynthError::Desc {

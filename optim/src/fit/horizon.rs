@@ -22,8 +22,7 @@
 //!    candidate joined again (one radiance of the same flux), rendered with the same random numbers on the
 //!    test pixels its light reaches (at most `object.holdout_pixels`): it keeps its split when the paired t of
 //!    its pixels' L1 gain exceeds the lobe test's threshold and the gain its minimum share of their mean
-//!    radiance. A lamp whose light is the same
-//!    up and down gains nothing and keeps one radiance.
+//!    radiance. A lamp whose light is the same up and down gains nothing and keeps one radiance.
 //! 5. A candidate not kept is **joined** again, into the one radiance of the same flux as its halves; the
 //!    re-fit's albedos stay (its split did not change the light the photos show by a significant amount).
 
@@ -217,12 +216,13 @@ pub(super) fn test(
     Ok(kept)
 }
 
-/// Object k's emission joined from its two halves into the one radiance of the same flux, (1 − u)·sky +
-/// u·ground with u its upward share (`tracer::Params::uniform_emission`), its ground entries cleared.
+/// Object k's emission joined from its two halves into the one radiance of the same flux
+/// ([`tracer::params::joined_halves`], u its upward share), its ground entries cleared.
 fn join(x: &mut [f64], k: usize, u: f64) {
+    let half = |at: usize| glam::DVec3::new(x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]);
+    let joined = tracer::params::joined_halves(half(EMISSION), half(EMISSION_GROUND), u);
     for c in 0..3 {
-        let (sky, ground) = (x[idx(k, EMISSION + c)], x[idx(k, EMISSION_GROUND + c)]);
-        x[idx(k, EMISSION + c)] = (1.0 - u) * sky + u * ground;
+        x[idx(k, EMISSION + c)] = joined[c];
         x[idx(k, EMISSION_GROUND + c)] = 0.0;
     }
 }

@@ -86,17 +86,10 @@ impl Split {
     #[must_use]
     pub fn params(&self, x: &[f64]) -> tracer::Params {
         let mut p = to_params(x);
-        if self.is_empty() {
-            return p;
-        }
-        let n = p.emission.len();
-        let mut ground = vec![None; n];
-        for k in (0..n).filter(|&k| self.of(k)) {
-            ground[k] = Some(p.emission.len() as u32);
-            let v = |c: usize| x[idx(k, EMISSION_GROUND + c)] as f32;
-            p.emission.push(Vec3::new(v(0), v(1), v(2)));
-        }
-        p.horizon = tracer::params::Horizon { up: self.up, ground };
+        let v = |k: usize, c: usize| x[idx(k, EMISSION_GROUND + c)] as f32;
+        let halves =
+            (0..p.emission.len()).filter(|&k| self.of(k)).map(|k| (k as u32, Vec3::new(v(k, 0), v(k, 1), v(k, 2))));
+        p.split_at_horizon(self.up, halves);
         p
     }
 }
