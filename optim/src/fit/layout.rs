@@ -28,6 +28,12 @@ pub fn idx(k: usize, p: usize) -> usize {
     PER_OBJECT * k + p
 }
 
+/// Object k's base colour in `x`.
+#[must_use]
+pub fn base_color(x: &[f64], k: usize) -> [f64; 3] {
+    std::array::from_fn(|c| x[idx(k, BASE_COLOR + c)])
+}
+
 /// The starting point: grey diffuse, roughness ½, no emission.
 #[must_use]
 pub fn initial(objects: usize) -> Vec<f64> {

@@ -360,7 +360,7 @@ pub fn fit_objects(
         progress.set_position(1);
         for (&k, se) in unseen.iter().zip(se) {
             let p = prior.prior(&x, k);
-            let estimate = [x[idx(k, BASE_COLOR)], x[idx(k, BASE_COLOR + 1)], x[idx(k, BASE_COLOR + 2)]];
+            let estimate = layout::base_color(&x, k);
             let (rho, weight) = super::prior::combine(estimate, se, &p);
             for c in 0..3 {
                 x[idx(k, BASE_COLOR + c)] = rho[c];

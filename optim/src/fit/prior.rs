@@ -29,7 +29,7 @@
 
 use super::ObjectDesc;
 use super::jacobian::{self, Ctx};
-use super::layout::{BASE_COLOR, EMISSION, PER_OBJECT, idx};
+use super::layout::{self, BASE_COLOR, EMISSION, PER_OBJECT, idx};
 use super::linear::sandwich_diagonal;
 use super::pixels::WeightedDraw;
 use crate::streams::key::{PROFILE_JACOBIAN, SECOND_ESTIMATE};
@@ -130,7 +130,7 @@ impl UnseenPrior {
             let objects = donors.len();
             (donors, PriorSource::AllObserved { objects })
         } else {
-            let start = [x[idx(k, BASE_COLOR)], x[idx(k, BASE_COLOR + 1)], x[idx(k, BASE_COLOR + 2)]];
+            let start = layout::base_color(x, k);
             return Prior { mean: start, sd: [0.5; 3], source: PriorSource::StartValue };
         };
         let w: f64 = set.iter().map(|&d| self.area[d]).sum();

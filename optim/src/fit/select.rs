@@ -16,7 +16,9 @@
 use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::horizon;
 use super::jacobian::{self, Ctx};
-use super::layout::{BASE_COLOR, EMISSION, EMISSION_GROUND, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, Split, idx};
+use super::layout::{
+    self, BASE_COLOR, EMISSION, EMISSION_GROUND, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, Split, idx,
+};
 use super::linear::{self, paired_t};
 use super::paired::{MIN_GAIN, T_KEEP, l1, paired_renders, target};
 use super::pixels::{PixelSets, Sample};
@@ -881,7 +883,8 @@ pub fn choose_models(
         };
         let rel = gain / mean_lit.max(f64::MIN_POSITIVE);
         let beats = |t: f64, rel: f64| emission_beats(None, t, rel);
-        let base_without: [f64; 3] = std::array::from_fn(|c| x[idx(k, BASE_COLOR + c)] + delta[c]);
+        let base = layout::base_color(&x, k);
+        let base_without: [f64; 3] = std::array::from_fn(|c| base[c] + delta[c]);
         let light_keeps = emission_beats(free[k].then_some(base_without), t, rel);
         // An object the photos see may look like an emitter because it mirrors one: a rough metal beside a
         // lamp is bright from most views, and with a diffuse lobe only an emission reproduces it (Modern Hall's
@@ -928,8 +931,7 @@ pub fn choose_models(
             });
         }
         let lobe_wins = lobe.as_ref().is_some_and(|l| {
-            let base = [l.x[idx(k, BASE_COLOR)], l.x[idx(k, BASE_COLOR + 1)], l.x[idx(k, BASE_COLOR + 2)]];
-            !emission_beats(Some(base), l.emission_against_lobe.1, l.emission_against_lobe.0)
+            !emission_beats(Some(layout::base_color(&l.x, k)), l.emission_against_lobe.1, l.emission_against_lobe.0)
         });
         // An emitter the pixels it lights do not keep is tested where it is seen ([`glimpse_test`]).
         let glimpse = if !light_keeps { glimpse_test(ctx, s, sets, &mut model, &x, k)? } else { None };
