@@ -115,6 +115,9 @@ pub mod key {
     /// (`SELECT_EMISSION_LOBE + 2k` dielectric, `+ 2k + 1` metal roughness search; the render of its arm at
     /// `SELECT_EMISSION_TEST`, with the other arms).
     pub const SELECT_EMISSION_LOBE: u64 = SELECT + (10 << 20);
+    /// Model selection: object k's columns of its two halves at the horizon in its emission test, when the test
+    /// weighs its emission split (`SELECT_SPLIT_COLUMNS + k`; the split arm's render at `SELECT_EMISSION_TEST`).
+    pub const SELECT_SPLIT_COLUMNS: u64 = SELECT + (11 << 20);
     /// Model selection: the horizon test's renders of the model with every candidate split and with one
     /// joined again (common random numbers, the same for every candidate; `crate::fit::horizon`).
     pub const SELECT_HORIZON_TEST: u64 = SELECT + (12 << 20);

@@ -15,7 +15,8 @@
 //!    each side of the horizon (`tracer::Scene::upward_shares`; a ceiling panel sends all of it down and has
 //!    nothing to split) that the photos see from both sides of it: each half is fitted where it is seen.
 //! 3. **Fit** (by model selection, `super::select`): every candidate split, its ground half starting at its
-//!    emission, emission and base colour are re-fitted together, as after a dropped emission (the albedos
+//!    emission (both halves at those its emission test fitted where that test kept the emission only split),
+//!    emission and base colour are re-fitted together, as after a dropped emission (the albedos
 //!    were fitted under the uniform emitters' light; with them fixed, a sideways lamp's upward half took the
 //!    light the ceiling's too-dark albedo missed, 1.7× its truth on `data-fixtures/scenes/window.toml`).
 //! 4. **Test**, per candidate: the solved model with every candidate split against the same model with this
@@ -85,21 +86,29 @@ fn is_candidate(share: &[f64], k: usize) -> bool {
 /// half set in `x` to its emission (the split model starts where the uniform one is). None when the cameras
 /// give no up axis or no emitter qualifies.
 pub(super) fn candidates(ctx: &Ctx<'_>, sets: &PixelSets, lit: &[Vec<usize>], x: &mut [f64], emits: &[bool]) -> Split {
-    let k_count = emits.len();
-    let Some(up) = split_up(ctx) else {
-        return Split { up: Vec3::ZERO, split: vec![false; k_count] };
-    };
-    let share = ctx.scene.upward_shares(up);
-    let wanted: Vec<bool> =
-        (0..k_count).map(|k| emits[k] && is_candidate(&share, k) && lit.get(k).is_some_and(|l| l.len() >= 2)).collect();
-    let seen = seen_from_each_side(ctx, sets, up, &wanted);
-    let split: Vec<bool> = (0..k_count).map(|k| wanted[k] && seen[k]).collect();
-    for k in (0..k_count).filter(|&k| split[k]) {
+    let wanted: Vec<bool> = (0..emits.len()).map(|k| emits[k] && lit.get(k).is_some_and(|l| l.len() >= 2)).collect();
+    let split = splittable(ctx, sets, &wanted);
+    for k in (0..emits.len()).filter(|&k| split.of(k)) {
         for c in 0..3 {
             x[idx(k, EMISSION_GROUND + c)] = x[idx(k, EMISSION + c)];
         }
     }
-    Split { up, split }
+    split
+}
+
+/// Per object with `wanted[k]`: whether it may be split — it sends at least [`MIN_SIDE`] of its emission to
+/// each side of the horizon and the training pixels see it from each side ([`seen_from_each_side`]) — with the
+/// up axis; none (and up zero) when the cameras give no up axis. The emission test asks this of every emitter
+/// before it tests them, the candidates ([`candidates`]) of the kept ones.
+pub(super) fn splittable(ctx: &Ctx<'_>, sets: &PixelSets, wanted: &[bool]) -> Split {
+    let k_count = wanted.len();
+    let Some(up) = split_up(ctx) else {
+        return Split { up: Vec3::ZERO, split: vec![false; k_count] };
+    };
+    let share = ctx.scene.upward_shares(up);
+    let wanted: Vec<bool> = (0..k_count).map(|k| wanted[k] && is_candidate(&share, k)).collect();
+    let seen = seen_from_each_side(ctx, sets, up, &wanted);
+    Split { up, split: (0..k_count).map(|k| wanted[k] && seen[k]).collect() }
 }
 
 /// Per object with `wanted[k]`: whether the training pixels see it from above its horizon (the ground half's

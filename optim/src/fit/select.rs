@@ -9,6 +9,11 @@
 //! emission is white (its base colour at the top of its domain in every channel), that alternative is the
 //! brightest reflector there is rather than a fit, and the emission needs t > 2 instead of 3 (measured: the same
 //! file, "An emission against a white alternative").
+//! A sideways emitter that the horizon step could split is tested again with its emission split when the
+//! pixels its light reaches do not keep it as one radiance in every direction: a window pane's uniform emission
+//! sends the ceiling light that the ground outside never sent, and on those pixels it can do worse than no
+//! emission at all. The split is kept only where it also beats one radiance fitted on the same pixels
+//! (measured: the same file, "A window pane tested split").
 //! Last, a kept emitter that faces sideways may be split at the horizon (`super::horizon`): the closing re-fit
 //! runs with every such emitter split, and each keeps its split only where the held-out pixels its light
 //! reaches pay for it.
@@ -17,7 +22,7 @@ use super::emission_solve::{Unknowns, solve_step_pinned};
 use super::horizon;
 use super::jacobian::{self, Ctx};
 use super::layout::{
-    self, BASE_COLOR, EMISSION, EMISSION_GROUND, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, Split, idx,
+    self, BASE_COLOR, EMISSION, EMISSION_GROUND, EMISSION_MAX, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, Split, idx,
 };
 use super::linear::{self, paired_t};
 use super::paired::{MIN_GAIN, T_KEEP, l1, paired_renders, target};
@@ -357,6 +362,143 @@ struct EmissionLook {
     gain: f64,
     t: f64,
     stopped: Option<Stop>,
+}
+
+/// An emitter's test on the pixels its light reaches with its emission split at the horizon (`horizon`): the
+/// two halves fitted on the test rows, the base-colour change of the model without the emission refitted on
+/// the same rows, the stratified gain of the split model over that model with its t, and the gain of the split
+/// model over one radiance fitted on the same rows with its t.
+struct SplitLook {
+    sky: [f64; 3],
+    ground: [f64; 3],
+    /// The one radiance fitted on the same rows.
+    one: [f64; 3],
+    delta: [f64; 3],
+    /// The rows it was tested on (every drawn row).
+    rows: usize,
+    /// Against the model without the emission: gain relative to the rows' mean radiance, and t.
+    rel: f64,
+    t: f64,
+    /// Against one radiance fitted on the same rows: gain relative to the rows' mean radiance, and t; None
+    /// where the split does not beat no emission (not rendered).
+    against_one: Option<(f64, f64)>,
+    /// The split model's arm per test row.
+    pred: std::collections::HashMap<usize, [f64; 3]>,
+}
+
+impl SplitLook {
+    /// Whether the split pays for its second radiance as the horizon test requires of a split ([`T_KEEP`],
+    /// [`MIN_GAIN`]). A gain of the split model over no emission alone may be the gain of fitting a radiance on
+    /// the test rows, not of splitting it: on `data-fixtures/scenes/window.toml` two walls whose uniform
+    /// emission from the refinement made their lit pixels worse (t = −9.5 and −9.1) gained 1.0–1.1 % over no
+    /// emission (t = 11.6 and 13.0) with halves fitted there, and 0.08–0.23 % over one radiance fitted there.
+    fn split_pays(&self) -> bool {
+        self.against_one.is_some_and(|(rel, t)| t > T_KEEP && rel > MIN_GAIN)
+    }
+}
+
+/// The emission test of emitter k again, with its emission split at the horizon `up`, on all its drawn test
+/// rows `rows` (their arms without the emission and base-colour columns in `cache`; strata weights `w_own`,
+/// `w_other` as in the main test). A window pane sends the sky's light down and the ground's up: its uniform
+/// emission, fitted to the photos over the whole room, sends the ceiling light it does not get, and on the
+/// pixels its light reaches can do worse than no emission at all (a pane of the corpus house, t = −2.2). The
+/// halves are fitted per channel by an L1 solve on the rows themselves, as the model without the emission
+/// gets its base colour ([`refit_on_column`]), from their columns at `solve_spp` paths, and so is one radiance
+/// (the two columns' sum), which the split must also beat ([`SplitLook::split_pays`]); each model is rendered
+/// with the test's random numbers, paired with the others.
+#[allow(clippy::too_many_arguments)]
+fn split_look(
+    ctx: &Ctx<'_>,
+    s: &ObjectFitSettings,
+    (params, x, k, free): (&tracer::Params, &[f64], usize, bool),
+    up: glam::Vec3,
+    rows: &[usize],
+    (pix, test): (&[PixelRef], &[Sample]),
+    cache: &std::collections::HashMap<usize, ArmsAt>,
+    (w_own, w_other): (f64, f64),
+) -> Result<SplitLook, FitError> {
+    let px: Vec<PixelRef> = rows.iter().map(|&j| pix[j]).collect();
+    let tgt: Vec<[f64; 3]> = rows.iter().map(|&j| target(&test[j])).collect();
+    let is_own: Vec<bool> = rows.iter().map(|&j| test[j].object == Some(k as u32)).collect();
+    let row_w: Vec<f64> = is_own.iter().map(|&o| if o { w_own } else { w_other }).collect();
+    let solve_w: Vec<f64> = row_w.iter().map(|w| w * row_w.len() as f64).collect();
+    let without_k: Vec<[f64; 3]> = rows.iter().map(|j| cache[j].without).collect();
+    let col: Vec<[f64; 3]> = rows.iter().map(|j| cache[j].column).collect();
+    let mut without = without_k.clone();
+    let delta = if free { refit_on_column(x, k, &col, &tgt, &solve_w, &mut without) } else { [0.0; 3] };
+    let e = params.emission[k];
+    let mut split = params.clone();
+    split.split_at_horizon(up, [(k as u32, e)]);
+    let ground_slot = split.horizon.ground_of(k as u32).expect("k was just split");
+    let cols = jacobian::entry_columns(
+        ctx,
+        &split,
+        &px,
+        s.solve_spp,
+        key::SELECT_SPLIT_COLUMNS + k as u64,
+        &[k as u32, ground_slot],
+    )?;
+    // Per channel, an L1 fit of the emission's entries with these columns to the rows' photos less the model
+    // without the emission, each entry in [0, EMISSION_MAX], from the uniform emission.
+    let fit = |c: usize, cc: &[Vec<f64>]| -> Vec<f64> {
+        let n = cc.len();
+        let t_c: Vec<f64> = tgt.iter().zip(&without_k).map(|(t, o)| t[c] - o[c]).collect();
+        let (zeros, lo, hi) = (vec![0.0; n], vec![0.0; n], vec![EMISSION_MAX; n]);
+        let mut v = vec![f64::from(e[c]); n];
+        let problem = linear::Problem {
+            cols: cc,
+            target: &t_c,
+            second: None,
+            weights: Some(&solve_w),
+            groups: None,
+            penalty: &zeros,
+            prox: &zeros,
+            anchor: &zeros,
+            lo: &lo,
+            hi: &hi,
+        };
+        linear::solve(&problem, linear::DataLoss::L1, &mut v, 20);
+        v
+    };
+    let (mut sky, mut ground, mut one) = ([0.0; 3], [0.0; 3], [0.0; 3]);
+    for c in 0..3 {
+        let halves: Vec<Vec<f64>> = cols.iter().map(|col| col.iter().map(|v| v[c]).collect()).collect();
+        let both: Vec<f64> = halves[0].iter().zip(&halves[1]).map(|(a, b)| a + b).collect();
+        let v = fit(c, &halves);
+        (sky[c], ground[c]) = (v[0], v[1]);
+        one[c] = fit(c, &[both])[0];
+    }
+    let as_vec3 = |v: [f64; 3]| glam::DVec3::from_array(v).as_vec3();
+    split.emission[k] = as_vec3(sky);
+    split.emission[ground_slot as usize] = as_vec3(ground);
+    let arm = emission_test_arm(ctx, s, &split, &px)?;
+    let mean_lit = tgt.iter().zip(&row_w).map(|(t, w)| w * l1(*t, [0.0; 3])).sum::<f64>().max(f64::MIN_POSITIVE);
+    let versus = |other: &[[f64; 3]]| {
+        let d: Vec<f64> = tgt.iter().zip(other.iter().zip(&arm)).map(|(t, (o, p))| l1(*t, *o) - l1(*t, *p)).collect();
+        let (gain, se) = linear::stratified_mean_se(&d, &is_own, w_own, w_other);
+        (gain / mean_lit, linear::t_statistic(gain, se))
+    };
+    let (rel, t) = versus(&without);
+    // One radiance is rendered only where the split passes against no emission at the lowest bar there is
+    // (a white alternative's): elsewhere the split is dropped whatever that comparison says.
+    let against_one = if emission_beats(Some([1.0; 3]), t, rel) {
+        let mut uniform = params.clone();
+        uniform.emission[k] = as_vec3(one);
+        Some(versus(&emission_test_arm(ctx, s, &uniform, &px)?))
+    } else {
+        None
+    };
+    Ok(SplitLook {
+        sky,
+        ground,
+        one,
+        delta,
+        rows: rows.len(),
+        rel,
+        t,
+        against_one,
+        pred: rows.iter().copied().zip(arm).collect(),
+    })
 }
 
 /// Why a sequential test stopped before its last look.
@@ -759,6 +901,11 @@ pub fn choose_models(
     // sideways (`horizon`).
     let sided = horizon::sided(ctx);
     let mut horizon_lit: Vec<Vec<usize>> = vec![Vec::new(); k_count];
+    // The emitters that the horizon step could split, and the halves of those whose emission only the split
+    // kept ([`split_look`]): the re-fit after the test starts from them.
+    let emitting: Vec<bool> = (0..k_count).map(|k| emitters.contains(&k)).collect();
+    let splittable = horizon::splittable(ctx, sets, &emitting);
+    let mut kept_split: Vec<Option<([f64; 3], [f64; 3])>> = vec![None; k_count];
     let mut material_refit = false;
     let mut tested = 0;
     for k in 0..k_count {
@@ -886,6 +1033,27 @@ pub fn choose_models(
         let base = layout::base_color(&x, k);
         let base_without: [f64; 3] = std::array::from_fn(|c| base[c] + delta[c]);
         let light_keeps = emission_beats(free[k].then_some(base_without), t, rel);
+        // A sideways emitter that the horizon step could split and that this test does not keep as one
+        // radiance in every direction is tested again split, on every drawn row ([`split_look`]).
+        let split = if !light_keeps && splittable.of(k) {
+            let mut rows: Vec<usize> = own.iter().chain(&other).copied().collect();
+            rows.sort_unstable();
+            fill(&mut cache, &mut model, &rows)?;
+            let weights = (share(n_lit_own, n_own), share(n_lit_other, n_other));
+            let up = splittable.up;
+            Some(split_look(ctx, s, (&params, &x, k, free[k]), up, &rows, (&pix, test), &cache, weights)?)
+        } else {
+            None
+        };
+        let split_keeps = split.as_ref().is_some_and(|l| {
+            let base_without: [f64; 3] = std::array::from_fn(|c| base[c] + l.delta[c]);
+            emission_beats(free[k].then_some(base_without), l.t, l.rel) && l.split_pays()
+        });
+        // The kept model's test: the split one's where only it keeps the emission.
+        let (t_kept, delta_kept) = match &split {
+            Some(l) if split_keeps => (l.t, l.delta),
+            _ => (t, delta),
+        };
         // An object the photos see may look like an emitter because it mirrors one: a rough metal beside a
         // lamp is bright from most views, and with a diffuse lobe only an emission reproduces it (Modern Hall's
         // `Metal` kept the colour of the light above it as its emission). So a seen emitter's emission must
@@ -899,18 +1067,24 @@ pub fn choose_models(
         let mut lobe: Option<LobeAlternative> = None;
         let mut own_rows: Vec<usize> = own.clone();
         own_rows.sort_unstable();
-        if light_keeps && free[k] && own_rows.len() >= 2 {
+        if (light_keeps || split_keeps) && free[k] && own_rows.len() >= 2 {
             fill(&mut cache, &mut model, &own_rows)?;
             let x_alt = best_lobe_without_emission(ctx, s, &profile_samples(ctx, sets, k), &x, k)?;
             let own_px: Vec<PixelRef> = own_rows.iter().map(|&j| pix[j]).collect();
             let own_tgt: Vec<[f64; 3]> = own_rows.iter().map(|&j| target(&test[j])).collect();
-            let own_pred: Vec<[f64; 3]> = own_rows.iter().map(|j| cache[j].pred).collect();
-            // The diffuse model without emission at the base colour refitted by the test (`delta`).
+            let own_pred: Vec<[f64; 3]> = own_rows
+                .iter()
+                .map(|j| match &split {
+                    Some(l) if split_keeps => l.pred[j],
+                    _ => cache[j].pred,
+                })
+                .collect();
+            // The diffuse model without emission at the base colour refitted by the test (`delta_kept`).
             let own_without: Vec<[f64; 3]> = own_rows
                 .iter()
                 .map(|j| {
                     let (w, col) = (cache[j].without, cache[j].column);
-                    std::array::from_fn(|c| w[c] + col[c] * delta[c])
+                    std::array::from_fn(|c| w[c] + col[c] * delta_kept[c])
                 })
                 .collect();
             let alt = arm_on(&ctx.params(&x_alt), &own_px)?;
@@ -933,8 +1107,29 @@ pub fn choose_models(
         let lobe_wins = lobe.as_ref().is_some_and(|l| {
             !emission_beats(Some(layout::base_color(&l.x, k)), l.emission_against_lobe.1, l.emission_against_lobe.0)
         });
+        // A kept emission's comparison with its lobe alternative on its own pixels, and where the lower bar for a
+        // white alternative decided it (its test on the pixels its light reaches at `t`, `rel`), for its reason.
+        let kept_note = |t: f64, rel: f64| -> String {
+            let mut note = lobe.as_ref().map_or(String::new(), |a| {
+                let (rel_alt, t_alt) = a.emission_against_lobe;
+                format!(
+                    "; against its best lobe without emission by {:.3} % on its {} own pixels (t = {t_alt:.1})",
+                    100.0 * rel_alt,
+                    own_rows.len()
+                )
+            });
+            if !beats(t, rel)
+                || lobe.as_ref().is_some_and(|a| !beats(a.emission_against_lobe.1, a.emission_against_lobe.0))
+            {
+                note.push_str(&format!(
+                    "; its best material without emission has a base colour at the top of its domain (white), which \
+                     holds the emission to t > {T_SATURATED} instead of {T_KEEP}"
+                ));
+            }
+            note
+        };
         // An emitter the pixels it lights do not keep is tested where it is seen ([`glimpse_test`]).
-        let glimpse = if !light_keeps { glimpse_test(ctx, s, sets, &mut model, &x, k)? } else { None };
+        let glimpse = if !light_keeps && !split_keeps { glimpse_test(ctx, s, sets, &mut model, &x, k)? } else { None };
         let glimpse_kept = glimpse
             .as_ref()
             .filter(|g| glimpse_gain(g.against_diffuse))
@@ -954,26 +1149,30 @@ pub fn choose_models(
                 lobe.1,
                 -100.0 * rel
             ));
+        } else if let Some(l) = split.as_ref().filter(|_| split_keeps && !lobe_wins) {
+            emits[k] = true;
+            kept_split[k] = Some((l.sky, l.ground));
+            let against_lobe = kept_note(l.t, l.rel);
+            why[k].push(format!(
+                "emission kept split at the horizon: as one radiance in every direction it changes the {test_name} \
+                 L1 of the {} pixels its light reaches (of {}) by {:+.3} % (t = {t:.1}), but with its two halves \
+                 fitted on all {} drawn (sky {:.4?}, ground {:.4?}) it lowers it by {:.3} % of their mean radiance \
+                 (t = {:.1}), and by {:.3} % (t = {:.1}) against one radiance {:.4?} fitted there{against_lobe}",
+                on.len(),
+                lit.len(),
+                -100.0 * rel,
+                l.rows,
+                l.sky,
+                l.ground,
+                100.0 * l.rel,
+                l.t,
+                100.0 * l.against_one.map_or(0.0, |a| a.0),
+                l.against_one.map_or(0.0, |a| a.1),
+                l.one
+            ));
         } else if light_keeps && !lobe_wins {
             emits[k] = true;
-            let against_lobe = lobe.as_ref().map_or(String::new(), |l| {
-                let (rel_alt, t_alt) = l.emission_against_lobe;
-                format!(
-                    "; against its best lobe without emission by {:.3} % on its {} own pixels (t = {t_alt:.1})",
-                    100.0 * rel_alt,
-                    own_rows.len()
-                )
-            });
-            let relaxed = !beats(t, rel)
-                || lobe.as_ref().is_some_and(|l| !beats(l.emission_against_lobe.1, l.emission_against_lobe.0));
-            let against_lobe = if relaxed {
-                format!(
-                    "{against_lobe}; its best material without emission has a base colour at the top of its domain \
-                     (white), which holds the emission to t > {T_SATURATED} instead of {T_KEEP}"
-                )
-            } else {
-                against_lobe
-            };
+            let against_lobe = kept_note(t, rel);
             let stop = if let Some(stop @ Stop::ClearlyPasses) = stopped {
                 format!(" (stopped there, of {n_full} drawn: {})", stop.reason())
             } else {
@@ -1003,16 +1202,18 @@ pub fn choose_models(
                 // The rest of the scene was fitted around the emission (a metal box's emission had the lamp
                 // 11 % bright and the walls 5 % dark): emission and base colours are re-fitted below.
                 material_refit = true;
-            } else if delta.iter().any(|d| d.abs() > REFIT_MATERIAL) {
+            } else if delta_kept.iter().any(|d| d.abs() > REFIT_MATERIAL) {
                 material_refit = true;
             }
-            let early = if stopped == Some(Stop::ClearlyPasses) {
+            let early = if split_keeps {
+                " split at the horizon".to_owned()
+            } else if stopped == Some(Stop::ClearlyPasses) {
                 format!(" on {} of the {n_full} pixels drawn among those its light reaches", on.len())
             } else {
                 String::new()
             };
             why[k].push(format!(
-                "emission {e:.4?} dropped: it beats the diffuse model without it{early} (t = {t:.1}) but not its best \
+                "emission {e:.4?} dropped: it beats the diffuse model without it{early} (t = {t_kept:.1}) but not its best \
                  {kind} lobe without emission on its {} own pixels (roughness {r:.3}, specular {sp:.3}: the emission \
                  changes the {test_name} L1 by {:+.4} %, t = {t_alt:.1}; needs t > {T_KEEP}); {}",
                 own_rows.len(),
@@ -1049,10 +1250,30 @@ pub fn choose_models(
             } else {
                 String::new()
             };
+            let split_tried = split.as_ref().map_or(String::new(), |l| {
+                let one = l.against_one.map_or(String::new(), |(rel_one, t_one)| {
+                    format!(
+                        ", {:+.4} % (t = {t_one:.1}) against one radiance {:.4?} fitted there (a split needs t > \
+                         {T_KEEP} and > {:.1} % against it)",
+                        -100.0 * rel_one,
+                        l.one,
+                        100.0 * MIN_GAIN
+                    )
+                });
+                format!(
+                    "; split at the horizon with its halves fitted on all {} drawn (sky {:.4?}, ground {:.4?}), \
+                     {:+.4} % (t = {:.1}){one}",
+                    l.rows,
+                    l.sky,
+                    l.ground,
+                    -100.0 * l.rel,
+                    l.t
+                )
+            });
             why[k].push(format!(
                 "emission {e:.4?} dropped: on the {} {test_name} pixels its light reaches (of {}){stop} it changes \
-                 the L1 by {:+.4} % (t = {t:.1}; needs t > {T_KEEP}); without it the best base colour differs by \
-                 {delta:+.3?}{glimpsed}",
+                 the L1 by {:+.4} % (t = {t:.1}; needs t > {T_KEEP}){split_tried}; without it the best base colour \
+                 differs by {delta:+.3?}{glimpsed}",
                 on.len(),
                 lit.len(),
                 -100.0 * rel
@@ -1071,6 +1292,14 @@ pub fn choose_models(
     // Emitters that face sideways may send their light one way down and another up (`horizon`): the re-fit
     // below runs with every candidate split, then each is tested.
     let all = horizon::candidates(ctx, sets, &horizon_lit, &mut x, &emits);
+    // An emission that only its split kept starts the re-fit from the halves its test fitted.
+    for (k, (sky, ground)) in kept_split.iter().enumerate().filter_map(|(k, h)| h.map(|h| (k, h))) {
+        if all.of(k) {
+            for c in 0..3 {
+                (x[idx(k, EMISSION + c)], x[idx(k, EMISSION_GROUND + c)]) = (sky[c], ground[c]);
+            }
+        }
+    }
     let ctx_all = Ctx { split: &all, ..*ctx };
     if material_refit || !all.is_empty() {
         // A dropped emission had been standing in for albedo, or the albedos were fitted under uniform emitters
