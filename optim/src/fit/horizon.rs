@@ -80,26 +80,26 @@ fn is_candidate(share: &[f64], k: usize) -> bool {
     share.get(k).is_some_and(|u| (MIN_SIDE..=1.0 - MIN_SIDE).contains(u))
 }
 
-/// Step 2 of the module docs: every kept emitter (`emits`) that sends enough of its emission to each side of
-/// the horizon, that the training photos see from each side in at least [`super::solve::MIN_PIXELS`] pixels
-/// ([`seen_from_each_side`]), and whose light reaches at least two test rows (`lit[k]`), split, with its ground
-/// half set in `x` to its emission (the split model starts where the uniform one is). None when the cameras
-/// give no up axis or no emitter qualifies.
-pub(super) fn candidates(ctx: &Ctx<'_>, sets: &PixelSets, lit: &[Vec<usize>], x: &mut [f64], emits: &[bool]) -> Split {
-    let wanted: Vec<bool> = (0..emits.len()).map(|k| emits[k] && lit.get(k).is_some_and(|l| l.len() >= 2)).collect();
-    let split = splittable(ctx, sets, &wanted);
-    for k in (0..emits.len()).filter(|&k| split.of(k)) {
+/// Step 2 of the module docs: every kept emitter (`emits`) that may be split (`splittable`, from
+/// [`splittable`] over every emitter the emission test started from: it sends enough of its emission to each
+/// side of the horizon and the training photos see it from each side) and whose light reaches at least two test
+/// rows (`lit[k]`), split, with its ground half set in `x` to its emission (the split model starts where the
+/// uniform one is). None when the cameras give no up axis or no emitter qualifies.
+pub(super) fn candidates(splittable: &Split, lit: &[Vec<usize>], x: &mut [f64], emits: &[bool]) -> Split {
+    let split: Vec<bool> =
+        (0..emits.len()).map(|k| emits[k] && splittable.of(k) && lit.get(k).is_some_and(|l| l.len() >= 2)).collect();
+    for k in (0..emits.len()).filter(|&k| split[k]) {
         for c in 0..3 {
             x[idx(k, EMISSION_GROUND + c)] = x[idx(k, EMISSION + c)];
         }
     }
-    split
+    Split { up: splittable.up, split }
 }
 
 /// Per object with `wanted[k]`: whether it may be split — it sends at least [`MIN_SIDE`] of its emission to
 /// each side of the horizon and the training pixels see it from each side ([`seen_from_each_side`]) — with the
 /// up axis; none (and up zero) when the cameras give no up axis. The emission test asks this of every emitter
-/// before it tests them, the candidates ([`candidates`]) of the kept ones.
+/// before it tests them; the candidates ([`candidates`]) are the kept ones among them.
 pub(super) fn splittable(ctx: &Ctx<'_>, sets: &PixelSets, wanted: &[bool]) -> Split {
     let k_count = wanted.len();
     let Some(up) = split_up(ctx) else {

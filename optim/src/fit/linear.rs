@@ -165,6 +165,32 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     (((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]))) + tail
 }
 
+/// A weighted L1 fit of `x` (starting there) within the box [`lo`, `hi`], nothing else: [`solve`] of a
+/// [`Problem`] without penalties, proximal terms or a second estimate.
+pub fn solve_box_l1(
+    cols: &[Vec<f64>],
+    target: &[f64],
+    weights: Option<&[f64]>,
+    (lo, hi): (&[f64], &[f64]),
+    x: &mut [f64],
+    irls_iters: usize,
+) {
+    let zeros = vec![0.0; cols.len()];
+    let problem = Problem {
+        cols,
+        target,
+        second: None,
+        weights,
+        groups: None,
+        penalty: &zeros,
+        prox: &zeros,
+        anchor: &zeros,
+        lo,
+        hi,
+    };
+    solve(&problem, DataLoss::L1, x, irls_iters);
+}
+
 /// Solves a [`Problem`] starting from `x`; L1 and Huber by `irls_iters` reweighting rounds.
 pub fn solve(p: &Problem<'_>, loss: DataLoss, x: &mut [f64], irls_iters: usize) {
     let n = p.cols.len();

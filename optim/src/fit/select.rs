@@ -275,19 +275,7 @@ fn refit_on_column(
         let t_c: Vec<f64> = tgt.iter().zip(without.iter()).map(|(t, o)| t[c] - o[c]).collect();
         let rho = x[idx(k, BASE_COLOR + c)];
         let mut v = [0.0];
-        let problem = linear::Problem {
-            cols: &col,
-            target: &t_c,
-            second: None,
-            weights: Some(w),
-            groups: None,
-            penalty: &[0.0],
-            prox: &[0.0],
-            anchor: &[0.0],
-            lo: &[-rho],
-            hi: &[1.0 - rho],
-        };
-        linear::solve(&problem, linear::DataLoss::L1, &mut v, 20);
+        linear::solve_box_l1(&col, &t_c, Some(w), (&[-rho], &[1.0 - rho]), &mut v, 20);
         delta[c] = v[0];
         for (j, o) in without.iter_mut().enumerate() {
             o[c] += col[0][j] * v[0];
@@ -443,21 +431,8 @@ fn split_look(
     let fit = |c: usize, cc: &[Vec<f64>]| -> Vec<f64> {
         let n = cc.len();
         let t_c: Vec<f64> = tgt.iter().zip(&without_k).map(|(t, o)| t[c] - o[c]).collect();
-        let (zeros, lo, hi) = (vec![0.0; n], vec![0.0; n], vec![EMISSION_MAX; n]);
         let mut v = vec![f64::from(e[c]); n];
-        let problem = linear::Problem {
-            cols: cc,
-            target: &t_c,
-            second: None,
-            weights: Some(&solve_w),
-            groups: None,
-            penalty: &zeros,
-            prox: &zeros,
-            anchor: &zeros,
-            lo: &lo,
-            hi: &hi,
-        };
-        linear::solve(&problem, linear::DataLoss::L1, &mut v, 20);
+        linear::solve_box_l1(cc, &t_c, Some(&solve_w), (&vec![0.0; n], &vec![EMISSION_MAX; n]), &mut v, 20);
         v
     };
     let (mut sky, mut ground, mut one) = ([0.0; 3], [0.0; 3], [0.0; 3]);
@@ -1153,11 +1128,12 @@ pub fn choose_models(
             emits[k] = true;
             kept_split[k] = Some((l.sky, l.ground));
             let against_lobe = kept_note(l.t, l.rel);
+            let (rel_one, t_one) = l.against_one.expect("a kept split beat one radiance (SplitLook::split_pays)");
             why[k].push(format!(
                 "emission kept split at the horizon: as one radiance in every direction it changes the {test_name} \
                  L1 of the {} pixels its light reaches (of {}) by {:+.3} % (t = {t:.1}), but with its two halves \
                  fitted on all {} drawn (sky {:.4?}, ground {:.4?}) it lowers it by {:.3} % of their mean radiance \
-                 (t = {:.1}), and by {:.3} % (t = {:.1}) against one radiance {:.4?} fitted there{against_lobe}",
+                 (t = {:.1}), and by {:.3} % (t = {t_one:.1}) against one radiance {:.4?} fitted there{against_lobe}",
                 on.len(),
                 lit.len(),
                 -100.0 * rel,
@@ -1166,8 +1142,7 @@ pub fn choose_models(
                 l.ground,
                 100.0 * l.rel,
                 l.t,
-                100.0 * l.against_one.map_or(0.0, |a| a.0),
-                l.against_one.map_or(0.0, |a| a.1),
+                100.0 * rel_one,
                 l.one
             ));
         } else if light_keeps && !lobe_wins {
@@ -1291,7 +1266,7 @@ pub fn choose_models(
     }
     // Emitters that face sideways may send their light one way down and another up (`horizon`): the re-fit
     // below runs with every candidate split, then each is tested.
-    let all = horizon::candidates(ctx, sets, &horizon_lit, &mut x, &emits);
+    let all = horizon::candidates(&splittable, &horizon_lit, &mut x, &emits);
     // An emission that only its split kept starts the re-fit from the halves its test fitted.
     for (k, (sky, ground)) in kept_split.iter().enumerate().filter_map(|(k, h)| h.map(|h| (k, h))) {
         if all.of(k) {
