@@ -309,6 +309,40 @@ impl TriangleState {
         self.params().uniform_emission(&tracer::scene::upward_shares(self.horizon.up, objects, tris))
     }
 
+    /// Per object (`objects` entries): the area-weighted mean of its triangles' materials — base colour,
+    /// roughness, metallic and specular each averaged over the object's surface — or `None` for an object
+    /// with no triangle of positive area. This is the per-object summary of the per-triangle result: every
+    /// triangle's value rests on the photos that see it (or, unseen, takes its object's value), so the mean
+    /// uses all the photos' pixels, where the object stage's estimate rests on its solves' samples.
+    #[must_use]
+    pub fn object_means(&self, objects: usize) -> Vec<Option<tracer::Material>> {
+        // Sums in f64: a house-sized object has 10⁴–10⁵ triangles of very unequal area.
+        let mut sums = vec![([0.0f64; 3], 0.0f64, 0.0f64, 0.0f64, 0.0f64); objects];
+        for ((t, &o), m) in self.triangles.iter().zip(&self.face_object).zip(&self.materials) {
+            let Some(s) = sums.get_mut(o as usize) else { continue };
+            let [a, b, c] = t.map(|i| self.positions[i as usize].as_dvec3());
+            let area = 0.5 * (b - a).cross(c - a).length();
+            for (acc, v) in s.0.iter_mut().zip(m.base_color.to_array()) {
+                *acc += area * f64::from(v);
+            }
+            s.1 += area * f64::from(m.roughness);
+            s.2 += area * f64::from(m.metallic);
+            s.3 += area * f64::from(m.specular);
+            s.4 += area;
+        }
+        sums.into_iter()
+            .map(|(rgb, r, mt, sp, area)| {
+                // A degenerate object (every triangle of zero area) has no surface to average over.
+                (area > 0.0).then(|| tracer::Material {
+                    base_color: Vec3::new((rgb[0] / area) as f32, (rgb[1] / area) as f32, (rgb[2] / area) as f32),
+                    roughness: (r / area) as f32,
+                    metallic: (mt / area) as f32,
+                    specular: (sp / area) as f32,
+                })
+            })
+            .collect()
+    }
+
     /// Triangles of each object (`objects` entries).
     #[must_use]
     pub fn triangles_per_object(&self, objects: usize) -> Vec<usize> {
