@@ -300,13 +300,16 @@ impl TriangleState {
     /// its emission unless it is split at the horizon (`tracer::Params::uniform_emission`).
     #[must_use]
     pub fn uniform_emission(&self, objects: usize) -> Vec<Vec3> {
-        let tris = self.triangles.iter().zip(&self.face_object).map(|(t, &o)| {
+        self.params().uniform_emission(&tracer::scene::upward_shares(self.horizon.up, objects, self.faces()))
+    }
+
+    /// Per triangle: its object, its area and its front face's unit normal as the tracer's scene builds it.
+    fn faces(&self) -> impl Iterator<Item = (u32, f64, Vec3)> + '_ {
+        self.triangles.iter().zip(&self.face_object).map(|(t, &o)| {
             let [a, b, c] = t.map(|i| self.positions[i as usize]);
-            // The front face's normal as the tracer's scene builds it.
             let cr = (b - a).cross(c - a);
             (o, 0.5 * f64::from(cr.length()), cr.normalize_or_zero())
-        });
-        self.params().uniform_emission(&tracer::scene::upward_shares(self.horizon.up, objects, tris))
+        })
     }
 
     /// Per object (`objects` entries): the area-weighted mean of its triangles' materials — base colour,
@@ -318,10 +321,8 @@ impl TriangleState {
     pub fn object_means(&self, objects: usize) -> Vec<Option<tracer::Material>> {
         // Sums in f64: a house-sized object has 10⁴–10⁵ triangles of very unequal area.
         let mut sums = vec![([0.0f64; 3], 0.0f64, 0.0f64, 0.0f64, 0.0f64); objects];
-        for ((t, &o), m) in self.triangles.iter().zip(&self.face_object).zip(&self.materials) {
+        for ((o, area, _), m) in self.faces().zip(&self.materials) {
             let Some(s) = sums.get_mut(o as usize) else { continue };
-            let [a, b, c] = t.map(|i| self.positions[i as usize].as_dvec3());
-            let area = 0.5 * (b - a).cross(c - a).length();
             for (acc, v) in s.0.iter_mut().zip(m.base_color.to_array()) {
                 *acc += area * f64::from(v);
             }

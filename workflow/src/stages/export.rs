@@ -186,6 +186,16 @@ pub fn export_mesh(
     reporter: &dyn Reporter,
     detail: Option<&DetailRequest<'_>>,
 ) -> Result<MeshExport, StageError> {
+    export_mesh_of(run_dir, triangle::read_result(run_dir)?.as_ref(), reporter, detail)
+}
+
+/// [`export_mesh`] with the triangle stage's result already read (`None`: the stage wrote none).
+fn export_mesh_of(
+    run_dir: &std::path::Path,
+    triangle_result: Option<&optim::triangle::TriangleState>,
+    reporter: &dyn Reporter,
+    detail: Option<&DetailRequest<'_>>,
+) -> Result<MeshExport, StageError> {
     use crate::export::{ExportInput, ExportOptions, expand_per_object, write_all};
     let scene_data = Ingested::read(run_dir)?;
     let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
@@ -193,7 +203,7 @@ pub fn export_mesh(
     let opts = ExportOptions { z_up: scan_is_z_up(&scene_data.views), ..ExportOptions::default() };
     let dir = run_dir.join("export");
     let mut detail_report = None;
-    let report = match triangle::read_result(run_dir)? {
+    let report = match triangle_result {
         Some(st) => {
             if let Some(t) = st.face_object.iter().position(|&o| o as usize >= ids.len()) {
                 return Err(StageError::Artefact {
@@ -208,7 +218,7 @@ pub fn export_mesh(
             let segment_id: Vec<i32> = st.face_object.iter().map(|&o| segment(o)).collect();
             let grids = match detail {
                 Some(req) if req.settings.max_texels > 0 => {
-                    let (grids, r) = estimate_detail(&ids, &st, req, reporter)?;
+                    let (grids, r) = estimate_detail(&ids, st, req, reporter)?;
                     detail_report = Some(r);
                     Some(grids)
                 }
@@ -310,10 +320,11 @@ fn estimate_detail(
 /// what the sub-triangle detail did and `export/albedo.png`; `None` when the stage wrote no result.
 fn triangle_section(
     run_dir: &std::path::Path,
+    triangle_result: Option<&optim::triangle::TriangleState>,
     scene_data: &Ingested,
     detail: Option<optim::triangle::detail::DetailReport>,
-) -> Result<Option<crate::report::TriangleSection>, StageError> {
-    let Some(st) = triangle::read_result(run_dir)? else { return Ok(None) };
+) -> Option<crate::report::TriangleSection> {
+    let st = triangle_result?;
     let k = scene_data.objects.len();
     let mut before = vec![0usize; k];
     for &o in &scene_data.face_object {
@@ -329,7 +340,7 @@ fn triangle_section(
         .map(|(i, o)| (o.id, o.label.clone().unwrap_or_default(), before[i], after[i]))
         .collect();
     let atlas_png = std::fs::read(run_dir.join("export").join("albedo.png")).ok();
-    Ok(Some(crate::report::TriangleSection { counts, detail, atlas_png }))
+    Some(crate::report::TriangleSection { counts, detail, atlas_png })
 }
 
 /// The run's per-object result when the `triangle` stage wrote one: each object's base colour, roughness,
@@ -377,9 +388,11 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let plan = ctx.plan;
     let scene_data = Ingested::read(&plan.output)?;
     let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
-    let (materials, summarised) = match triangle::read_result(&plan.output)? {
-        Some(st) => (per_triangle_summary(read_result(&plan.output)?, &st, &ids), true),
-        None => (read_result(&plan.output)?, false),
+    // Read once: the summary, the mesh export and the report's per-triangle section all use it.
+    let triangle_result = triangle::read_result(&plan.output)?;
+    let materials = match &triangle_result {
+        Some(st) => per_triangle_summary(read_result(&plan.output)?, st, &ids),
+        None => read_result(&plan.output)?,
     };
     let history = read_history(&plan.output)?;
     write_json_atomic(&plan.output.join("materials.json"), &materials)?;
@@ -424,7 +437,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             plan.tracer.max_depth
         ),
     ];
-    if summarised {
+    if triangle_result.is_some() {
         notes.push(
             "objects and re-renders: each object's materials are the area-weighted means of its triangles' in the \
              per-triangle result, its emission that stage's (the object stage's own: object/materials.json)"
@@ -461,9 +474,9 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             seed: plan.export.seed,
         },
     };
-    let mesh = export_mesh(&plan.output, ctx.reporter, Some(&request))?;
+    let mesh = export_mesh_of(&plan.output, triangle_result.as_ref(), ctx.reporter, Some(&request))?;
     let mut data = data;
-    data.triangle = triangle_section(&plan.output, &scene_data, mesh.detail)?;
+    data.triangle = triangle_section(&plan.output, triangle_result.as_ref(), &scene_data, mesh.detail);
     write_atomic(&ctx.dir.join(REPORT_FILE), crate::report::html(&data).as_bytes())?;
     let mut files = vec![
         PathBuf::from("materials.json"),
