@@ -90,6 +90,19 @@ pub enum MaterialsError {
     Object { path: PathBuf, index: usize, id: i64, message: String },
 }
 
+impl HorizonEmission {
+    /// The two halves of emitter slot `k` in the tracer's tables, `None` when the slot is not split:
+    /// `emission[k]` is its sky half and the entry `horizon` names its ground half.
+    #[must_use]
+    pub fn of_slot(horizon: &tracer::params::Horizon, emission: &[Vec3], k: usize) -> Option<Self> {
+        horizon.ground_of(k as u32).map(|g| HorizonEmission {
+            up: horizon.up.to_array(),
+            sky: emission[k].to_array(),
+            ground: emission[g as usize].to_array(),
+        })
+    }
+}
+
 impl ObjectMaterial {
     /// The tracer's material.
     #[must_use]

@@ -372,11 +372,7 @@ fn per_triangle_summary(
             }
             o.triangles = counts[k];
             o.emission = uniform[k].to_array();
-            o.horizon = st.horizon.ground_of(k as u32).map(|g| crate::materials::HorizonEmission {
-                up: st.horizon.up.to_array(),
-                sky: st.emission[k].to_array(),
-                ground: st.emission[g as usize].to_array(),
-            });
+            o.horizon = crate::materials::HorizonEmission::of_slot(&st.horizon, &st.emission, k);
             o
         })
         .collect();
@@ -390,9 +386,10 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let ids: Vec<i64> = scene_data.objects.iter().map(|o| o.id).collect();
     // Read once: the summary, the mesh export and the report's per-triangle section all use it.
     let triangle_result = triangle::read_result(&plan.output)?;
+    let object = read_result(&plan.output)?;
     let materials = match &triangle_result {
-        Some(st) => per_triangle_summary(read_result(&plan.output)?, st, &ids),
-        None => read_result(&plan.output)?,
+        Some(st) => per_triangle_summary(object, st, &ids),
+        None => object,
     };
     let history = read_history(&plan.output)?;
     write_json_atomic(&plan.output.join("materials.json"), &materials)?;

@@ -212,11 +212,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
             .map(|(i, o)| {
                 let m = outcome.params.materials[i];
                 let e = uniform[i];
-                let split = horizon.ground_of(i as u32).map(|g| HorizonEmission {
-                    up: horizon.up.to_array(),
-                    sky: outcome.params.emission[i].to_array(),
-                    ground: outcome.params.emission[g as usize].to_array(),
-                });
+                let split = HorizonEmission::of_slot(horizon, &outcome.params.emission, i);
                 ObjectMaterial {
                     id: o.id,
                     label: o.label.clone(),
