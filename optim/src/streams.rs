@@ -121,6 +121,12 @@ pub mod key {
     /// Model selection: the horizon test's renders of the model with every candidate split and with one
     /// joined again (common random numbers, the same for every candidate; `crate::fit::horizon`).
     pub const SELECT_HORIZON_TEST: u64 = SELECT + (12 << 20);
+    /// Model selection: object k's metal probes and metal roughness search in the second look at its lobe
+    /// family, at `SELECT_METAL + k` (`crate::fit::select`).
+    pub const SELECT_METAL: u64 = SELECT + (13 << 20);
+    /// Model selection: the renders of the second look's test, with and without the metal lobes (common random
+    /// numbers).
+    pub const SELECT_METAL_TEST: u64 = SELECT + (14 << 20);
     /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
     /// below it, the next field 2^20 above).
     pub const SELECT_STEP_CHECK: u64 = 1 << 19;

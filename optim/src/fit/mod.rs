@@ -60,6 +60,7 @@
 
 pub mod adam;
 pub mod emission_solve;
+pub(crate) mod family;
 pub mod horizon;
 pub mod jacobian;
 pub mod layout;

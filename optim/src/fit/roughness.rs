@@ -20,8 +20,8 @@
 use super::jacobian::{self, Ctx};
 use super::layout::{BASE_COLOR, METALLIC, ROUGHNESS, SPECULAR, idx};
 use super::linear::{self, DataLoss, Problem};
-use super::pixels::Sample;
-use crate::streams::key;
+use super::pixels::{PixelSets, Sample};
+use crate::streams::{self, draw, key};
 use tracer::{PixelRef, TracerError};
 
 /// Coarse grid of the search: spans the domain with finer steps at low roughness, where the lobe changes
@@ -47,6 +47,52 @@ pub const FLAT_PROFILE: f64 = 0.005;
 pub const SPECULAR_BOUND: f64 = 0.99;
 /// IRLS rounds of the 4-variable solve (converges in a handful).
 const IRLS_ITERS: usize = 12;
+
+/// Linearisation point of the roughness search's (base colour, specular) solve: a mid-range lobe, so that
+/// the tracer samples the specular lobe and its Jacobian column is not zero.
+pub(super) const TRIAL_SPECULAR: f64 = 0.5;
+pub(super) const TRIAL_ROUGHNESS: f64 = 0.5;
+/// Pixels of an object in its roughness search (each evaluation: a value render and 3 gradient passes at
+/// `solve_spp / 2` paths). 256 pixels × 3 channels keep the profile's noise well under the 5–20 % spread of
+/// a glossy object's profile over the roughness grid, at half the cost of 512 (measured below in
+/// tests/fit_glossy.rs).
+pub(super) const PROFILE_PIXELS: usize = 256;
+/// Whether a training pixel belongs to the half that chooses lobes (the other half tests them).
+pub(super) fn in_profile(seed: u64, t: &Sample) -> bool {
+    streams::uniform(seed, draw::PROFILE, streams::pixel_key(t.pixel), 0) < 0.5
+}
+
+/// Object k's pixels for a roughness search: its training pixels of the lobe-choosing half, at most
+/// [`PROFILE_PIXELS`] of them.
+pub(super) fn profile_samples(ctx: &Ctx<'_>, sets: &PixelSets, k: usize) -> Vec<Sample> {
+    let own: Vec<Sample> =
+        sets.train.iter().filter(|t| t.object == Some(k as u32) && in_profile(ctx.seed, t)).copied().collect();
+    if own.len() <= PROFILE_PIXELS {
+        own
+    } else {
+        super::pixels::draw(&own, PROFILE_PIXELS, ctx.seed, draw::SOLVE_PIXELS, key::SELECT + k as u64)
+    }
+}
+
+/// The pixels of the lobe tests: all test pixels, and, with held-out pixels, each object's training pixels of
+/// the half that does not choose lobes ([`in_profile`]) up to the held-out budget `budget` per object.
+pub(super) fn lobe_test_samples(ctx: &Ctx<'_>, sets: &PixelSets, test: &[Sample], budget: usize) -> Vec<Sample> {
+    test.iter()
+        .copied()
+        .chain(if sets.holdout.is_empty() {
+            Vec::new()
+        } else {
+            let mut held: std::collections::HashMap<Option<u32>, usize> = std::collections::HashMap::new();
+            for t in test {
+                *held.entry(t.object).or_default() += 1;
+            }
+            let room = |o: Option<u32>| budget.saturating_sub(held.get(&o).copied().unwrap_or(0));
+            let rank = |t: &Sample| streams::uniform(ctx.seed, draw::PROFILE, streams::pixel_key(t.pixel), 1);
+            let half: Vec<Sample> = sets.train.iter().filter(|t| !in_profile(ctx.seed, t)).copied().collect();
+            super::pixels::cap_per_object_each(half, room, rank).0
+        })
+        .collect()
+}
 
 /// The result of one profile evaluation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -146,6 +192,21 @@ pub fn search(
     spp: u32,
     key: u64,
 ) -> Result<(ProfilePoint, Vec<ProfilePoint>), TracerError> {
+    search_up_to(ctx, x, k, samples, spp, key, 1.0)
+}
+
+/// [`search`] over the roughness range [0, `top`]: the grid points up to `top`, and a golden-section bracket
+/// that ends at `top` when the best grid point is the last of them.
+pub fn search_up_to(
+    ctx: &Ctx<'_>,
+    x: &[f64],
+    k: usize,
+    samples: &[Sample],
+    spp: u32,
+    key: u64,
+    top: f64,
+) -> Result<(ProfilePoint, Vec<ProfilePoint>), TracerError> {
+    let n_grid = GRID.iter().take_while(|&&r| r <= top).count().max(1);
     let mut evals = Vec::new();
     let eval = |r: f64, evals: &mut Vec<ProfilePoint>| -> Result<ProfilePoint, TracerError> {
         let p = profile(ctx, x, k, r, samples, spp, key)?;
@@ -154,13 +215,13 @@ pub fn search(
     };
     let mean_target = mean_target(samples);
     // The coarse points first; the others only where the profile is not flat over them.
-    let mut grid: Vec<Option<ProfilePoint>> = vec![None; GRID.len()];
-    for &i in &COARSE {
+    let mut grid: Vec<Option<ProfilePoint>> = vec![None; n_grid];
+    for &i in COARSE.iter().filter(|&&i| i < n_grid) {
         grid[i] = Some(eval(GRID[i], &mut evals)?);
     }
     let flat = flat(&grid, mean_target);
     if !flat {
-        for i in 0..GRID.len() {
+        for i in 0..n_grid {
             if grid[i].is_none() {
                 grid[i] = Some(eval(GRID[i], &mut evals)?);
             }
@@ -174,13 +235,13 @@ pub fn search(
         return Ok((best_point, evals));
     }
     let lo = if best == 0 { 0.0 } else { GRID[best - 1] };
-    let hi = if best + 1 == GRID.len() { 1.0 } else { GRID[best + 1] };
+    let hi = if best + 1 < n_grid { GRID[best + 1] } else { top.min(1.0) };
     golden(lo, hi, |r| eval(r, &mut evals))?;
     Ok((lowest(&evals).unwrap_or(best_point), evals))
 }
 
 /// Mean per-channel |target| of the object's pixels, which the profile's thresholds are relative to.
-fn mean_target(samples: &[Sample]) -> f64 {
+pub fn mean_target(samples: &[Sample]) -> f64 {
     samples.iter().map(|t| f64::from(t.target.abs().element_sum()) / 3.0).sum::<f64>() / samples.len().max(1) as f64
 }
 

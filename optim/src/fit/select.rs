@@ -14,20 +14,24 @@
 //! sends the ceiling light that the ground outside never sent, and on those pixels it can do worse than no
 //! emission at all. The split is kept only where it also beats one radiance fitted on the same pixels
 //! (measured: the same file, "A window pane tested split").
-//! Last, a kept emitter that faces sideways may be split at the horizon (`super::horizon`): the closing re-fit
+//! Then a kept emitter that faces sideways may be split at the horizon (`super::horizon`): the closing re-fit
 //! runs with every such emitter split, and each keeps its split only where the held-out pixels its light
-//! reaches pay for it.
+//! reaches pay for it. Last, under that settled light, `super::family` takes a second look at the lobe family
+//! of every object that ended dielectric, and keeps a metal lobe where the held-out pixels ask for one.
 
 use super::emission_solve::{Unknowns, solve_step_pinned};
+use super::family;
 use super::horizon;
 use super::jacobian::{self, Ctx};
 use super::layout::{
     self, BASE_COLOR, EMISSION, EMISSION_GROUND, EMISSION_MAX, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, Split, idx,
 };
 use super::linear::{self, paired_t};
-use super::paired::{MIN_GAIN, T_KEEP, l1, paired_renders, target};
+use super::paired::{
+    FIRST_LOOK, MIN_GAIN, Stop, T_KEEP, cannot_pass, clearly_passes, l1, sequential_lobe_test, target,
+};
 use super::pixels::{PixelSets, Sample};
-use super::roughness;
+use super::roughness::{self, TRIAL_ROUGHNESS, TRIAL_SPECULAR, lobe_test_samples, profile_samples};
 use super::solve::{self, solve_options, solve_samples};
 use super::step_check;
 use super::{FitError, ObjectFitSettings, ObjectModel};
@@ -35,15 +39,6 @@ use crate::progress::check_stop;
 use crate::streams::{self, draw, key};
 use tracer::PixelRef;
 
-/// Linearisation point of the roughness search's (base colour, specular) solve: a mid-range lobe, so that
-/// the tracer samples the specular lobe and its Jacobian column is not zero.
-const TRIAL_SPECULAR: f64 = 0.5;
-const TRIAL_ROUGHNESS: f64 = 0.5;
-/// Pixels of an object in its roughness search (each evaluation: a value render and 3 gradient passes at
-/// `solve_spp / 2` paths). 256 pixels × 3 channels keep the profile's noise well under the 5–20 % spread of
-/// a glossy object's profile over the roughness grid, at half the cost of 512 (measured below in
-/// tests/fit_glossy.rs).
-const PROFILE_PIXELS: usize = 256;
 /// Pilot columns of the emission test rendered together: each path of a render is traced once for all of
 /// them, and the columns held at once (16 × 12 bytes per test pixel: 33 MB for a house's 171 k test pixels)
 /// stay small, where all of a house's emitters × test pixels would not.
@@ -138,68 +133,6 @@ impl AveragedSteps {
             }
         }
         Ok(())
-    }
-}
-
-/// Pixels of an object at the lobe test's first look: the test looks at 256, 512, 1024, … of its pixels
-/// until it has looked at them all or [`cannot_pass`] or [`clearly_passes`] stops it. 256 pixels put the
-/// standard error of a wall's mean paired difference well under the 0.5 % of [`MIN_GAIN`] (a diffuse wall's
-/// best lobe changes its L1 by 0.1–0.3 %, docs/optim/design-measurements.md), so most walls stop at the first
-/// look.
-const FIRST_LOOK: usize = 256;
-
-/// Whether a test can stop after `n` of its `n_full` pixels because on all of them it could not plausibly
-/// pass: the upper confidence bound of the mean gain, `mean + T_KEEP · se` (one-sided 0.1 %), is below what a
-/// pass needs, the gain `min_gain` or `T_KEEP` standard errors of the full sample (`se · √(n / n_full)`).
-/// Stopping only tests that would fail keeps their false acceptances as they are; what it risks is a term
-/// lost, with probability ≲ 0.1 % per test, that the full test would keep.
-fn cannot_pass(mean: f64, se: f64, n: usize, n_full: usize, min_gain: f64) -> bool {
-    if n < 2 || n >= n_full {
-        return false;
-    }
-    let upper = mean + T_KEEP * se;
-    upper < min_gain || upper < T_KEEP * se * (n as f64 / n_full as f64).sqrt()
-}
-
-/// Whether a test can stop after `n` of its `n_full` pixels because on all of them it would pass beyond
-/// reasonable doubt: the lower confidence bound of the mean gain, `mean − T_KEEP · se` (one-sided 0.1 %), is
-/// above what a pass needs, both the gain `min_gain` and `T_KEEP` standard errors of the full sample. The
-/// mirror of [`cannot_pass`]: a term the full test would reject is kept with probability ≲ 0.1 % per test, and
-/// a stopped test's t-statistic and gain, on its `n` pixels, pass by themselves (t > `T_KEEP` and the gain
-/// above `min_gain`).
-fn clearly_passes(mean: f64, se: f64, n: usize, n_full: usize, min_gain: f64) -> bool {
-    if n < 2 || n >= n_full {
-        return false;
-    }
-    let lower = mean - T_KEEP * se;
-    lower > min_gain && lower > T_KEEP * se * (n as f64 / n_full as f64).sqrt()
-}
-
-/// The paired differences of the lobe test on `rows` of `test`: L1 of the diffuse render minus L1 of the
-/// render with the lobes, per pixel (positive where the lobe fits better).
-fn lobe_differences(test: &[Sample], rows: &[usize], i_d: &[glam::Vec3], i_t: &[glam::Vec3]) -> Vec<f64> {
-    rows.iter()
-        .map(|&j| {
-            let t = &test[j];
-            l1(target(t), i_d[j].as_dvec3().to_array()) - l1(target(t), i_t[j].as_dvec3().to_array())
-        })
-        .collect()
-}
-
-/// Whether a training pixel belongs to the half that chooses lobes (the other half tests them).
-fn in_profile(seed: u64, t: &Sample) -> bool {
-    streams::uniform(seed, draw::PROFILE, streams::pixel_key(t.pixel), 0) < 0.5
-}
-
-/// Object k's pixels for a roughness search: its training pixels of the lobe-choosing half, at most
-/// [`PROFILE_PIXELS`] of them.
-fn profile_samples(ctx: &Ctx<'_>, sets: &PixelSets, k: usize) -> Vec<Sample> {
-    let own: Vec<Sample> =
-        sets.train.iter().filter(|t| t.object == Some(k as u32) && in_profile(ctx.seed, t)).copied().collect();
-    if own.len() <= PROFILE_PIXELS {
-        own
-    } else {
-        super::pixels::draw(&own, PROFILE_PIXELS, ctx.seed, draw::SOLVE_PIXELS, key::SELECT + k as u64)
     }
 }
 
@@ -476,25 +409,6 @@ fn split_look(
     })
 }
 
-/// Why a sequential test stopped before its last look.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Stop {
-    /// [`cannot_pass`].
-    CannotPass,
-    /// [`clearly_passes`].
-    ClearlyPasses,
-}
-
-impl Stop {
-    /// What the `why` of a stopped test says about the pixels it did not look at.
-    fn reason(self) -> &'static str {
-        match self {
-            Stop::CannotPass => "on all of them it could not pass",
-            Stop::ClearlyPasses => "on all of them it would pass",
-        }
-    }
-}
-
 /// Drawn pixels of a stratum (the emitter's own pixels, or the others it lights) before the emission test may
 /// stop on a clear pass, unless all of the stratum's pixels are in: the standard error of a stratum's mean
 /// from fewer is itself too uncertain to rule out chance (with 16 values, the sample standard deviation is
@@ -673,22 +587,7 @@ pub fn choose_models(
         // all of its held-out pixels, then training pixels up to the budget (2048 detect a 4 % gain on glossy
         // highlights at t > 3, `object.holdout_pixels` in configs/README.md; a large object's 4096 doubled the
         // test's renders, the largest cost of a 213-object house's object stage).
-        let lobe_test: Vec<Sample> = test
-            .iter()
-            .copied()
-            .chain(if sets.holdout.is_empty() {
-                Vec::new()
-            } else {
-                let mut held: std::collections::HashMap<Option<u32>, usize> = std::collections::HashMap::new();
-                for t in test {
-                    *held.entry(t.object).or_default() += 1;
-                }
-                let room = |o: Option<u32>| budget.saturating_sub(held.get(&o).copied().unwrap_or(0));
-                let rank = |t: &Sample| streams::uniform(ctx.seed, draw::PROFILE, streams::pixel_key(t.pixel), 1);
-                let half: Vec<Sample> = sets.train.iter().filter(|t| !in_profile(ctx.seed, t)).copied().collect();
-                super::pixels::cap_per_object_each(half, room, rank).0
-            })
-            .collect();
+        let lobe_test = lobe_test_samples(ctx, sets, test, budget);
         let mut xt = x.clone();
         let n_free = free.iter().filter(|&&f| f).count();
         progress.phase("model selection: lobe search, object", n_free as u64, 0);
@@ -715,88 +614,23 @@ pub fn choose_models(
             xt[idx(k, METALLIC)] = best.metallic;
             progress.set_position(done as u64 + 1);
         }
-        // Common random numbers for both renders: the paired differences then carry little path noise. The
-        // test looks at each object's pixels in a fixed random order, first at [`FIRST_LOOK`] of them, then at
-        // twice as many per look up to all of them; an object whose lobe cannot plausibly pass on all of them
-        // stops ([`cannot_pass`]), and so does one whose lobe would pass on all of them beyond reasonable doubt
-        // ([`clearly_passes`]: a large glossy object's lobe gains at t = 10–25 on its 2048 pixels). The rest
-        // are decided on exactly the pixels, random numbers and renders of a single look at all of them (random
-        // numbers are keyed by the pixel).
-        let key = key::SELECT_LOBE_TEST;
-        let order_rank = |t: &Sample| streams::uniform(ctx.seed, draw::LOBE_TEST_ORDER, streams::pixel_key(t.pixel), 0);
-        let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); k_count];
-        for (j, t) in lobe_test.iter().enumerate() {
-            if let Some(k) = t.object.map(|o| o as usize).filter(|&k| k < k_count && free[k]) {
-                rows_of[k].push(j);
-            }
-        }
-        for rows in &mut rows_of {
-            rows.sort_by(|&a, &b| order_rank(&lobe_test[a]).total_cmp(&order_rank(&lobe_test[b])).then(a.cmp(&b)));
-        }
-        let (params_d, params_t) = (ctx.params(&x), ctx.params(&xt));
-        let mut i_d = vec![glam::Vec3::ZERO; lobe_test.len()];
-        let mut i_t = vec![glam::Vec3::ZERO; lobe_test.len()];
-        let mut open: Vec<usize> = (0..k_count).filter(|&k| free[k] && !rows_of[k].is_empty()).collect();
-        let mut looked = vec![0usize; k_count];
-        let mut stopped: Vec<Option<Stop>> = vec![None; k_count];
-        let mut n_look = FIRST_LOOK;
-        let mut rendered = 0usize;
-        let mut look = 1;
-        while !open.is_empty() {
-            let new_rows: Vec<usize> = open
-                .iter()
-                .flat_map(|&k| rows_of[k][looked[k]..rows_of[k].len().min(n_look)].iter().copied())
-                .collect();
-            let pix: Vec<PixelRef> = new_rows.iter().map(|&j| lobe_test[j].pixel).collect();
-            let (a, b) = paired_renders(
-                ctx,
-                (&params_d, &params_t),
-                &pix,
-                s.holdout_spp,
-                key,
-                progress,
-                &format!(
-                    "model selection: lobe test, look {look} ({} objects, {} pixels), block",
-                    open.len(),
-                    pix.len()
-                ),
-            )?;
-            rendered += pix.len();
-            for (i, &j) in new_rows.iter().enumerate() {
-                (i_d[j], i_t[j]) = (a[i], b[i]);
-            }
-            open.retain(|&k| {
-                looked[k] = rows_of[k].len().min(n_look);
-                if looked[k] == rows_of[k].len() {
-                    return false;
-                }
-                let d = lobe_differences(&lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
-                let (mean, se) = linear::mean_se(&d);
-                if cannot_pass(mean, se, d.len(), rows_of[k].len(), MIN_GAIN * mean_target) {
-                    stopped[k] = Some(Stop::CannotPass);
-                    return false;
-                }
-                if clearly_passes(mean, se, d.len(), rows_of[k].len(), MIN_GAIN * mean_target) {
-                    stopped[k] = Some(Stop::ClearlyPasses);
-                    return false;
-                }
-                true
-            });
-            n_look *= 2;
-            look += 1;
-        }
-        tracing::debug!(rendered, all = lobe_test.len(), "lobe test pixels rendered (two renders each)");
-        for k in (0..k_count).filter(|&k| free[k]) {
-            let d = lobe_differences(&lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
-            let (gain, t) = paired_t(&d);
+        let tested: Vec<bool> = free.to_vec();
+        let verdicts = sequential_lobe_test(
+            ctx,
+            s,
+            &lobe_test,
+            &tested,
+            (&x, &xt),
+            mean_target,
+            key::SELECT_LOBE_TEST,
+            progress,
+            "lobe test",
+        )?;
+        for (k, v) in verdicts.iter().enumerate().filter_map(|(k, v)| v.as_ref().map(|v| (k, v))) {
+            let (gain, t) = paired_t(&v.d);
             let rel = gain / mean_target.max(f64::MIN_POSITIVE);
-            let on = match stopped[k] {
-                Some(stop) => {
-                    format!("{} of its {} pixels (stopped there: {})", d.len(), rows_of[k].len(), stop.reason())
-                }
-                None => format!("{} pixels", d.len()),
-            };
-            if stopped[k] != Some(Stop::CannotPass) && t > T_KEEP && rel > MIN_GAIN {
+            let on = v.on();
+            if v.passes(mean_target) {
                 glossy[k] = true;
                 for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
                     x[idx(k, p)] = xt[idx(k, p)];
@@ -1307,6 +1141,22 @@ pub fn choose_models(
     } else {
         horizon::test(&ctx_all, s, (test, test_name), &horizon_lit, &mut x, &mut why, progress)?
     };
+    if s.try_specular && free.iter().any(|&f| f) {
+        let ctx_split = Ctx { split: &split, ..*ctx };
+        let lobe_test = lobe_test_samples(ctx, sets, test, budget);
+        family::second_look(
+            &ctx_split,
+            s,
+            sets,
+            &lobe_test,
+            mean_target,
+            &mut x,
+            (free, &emits),
+            &mut glossy,
+            &mut why,
+            progress,
+        )?;
+    }
     let models = (0..k_count)
         .map(|k| {
             let mut reasons = why[k].clone();
@@ -1356,25 +1206,6 @@ mod tests {
     }
 
     #[test]
-    fn a_test_stops_only_when_it_cannot_pass_on_all_its_pixels() {
-        // A lobe that makes the fit worse: mean −1, se 0.1 after 256 of 2048 pixels.
-        assert!(cannot_pass(-1.0, 0.1, 256, 2048, 0.0));
-        // Clearly better: never stopped.
-        assert!(!cannot_pass(1.0, 0.1, 256, 2048, 0.0));
-        // A gain of 0.1 at se 0.1 (t = 1): could still reach t > 3 on 8× the pixels, whose se is 0.035.
-        assert!(!cannot_pass(0.1, 0.1, 256, 2048, 0.0));
-        // The same gain and noise when the pass also needs a gain of 0.5: the upper bound 0.4 is below it.
-        assert!(cannot_pass(0.1, 0.1, 256, 2048, 0.5));
-        // At the last look the test is decided by its own rule, not stopped.
-        assert!(!cannot_pass(-1.0, 0.1, 2048, 2048, 0.0));
-        // A mean of −0.5 at se 0.3: its upper bound 0.4 is above what a pass on all pixels needs, T_KEEP
-        // standard errors of the full sample (3 · 0.3 · √(256/2048) ≈ 0.32): goes on.
-        assert!(!cannot_pass(-0.5, 0.3, 256, 2048, 0.0));
-        // …while a mean of −0.7 at that noise (upper 0.2) cannot reach it.
-        assert!(cannot_pass(-0.7, 0.3, 256, 2048, 0.0));
-    }
-
-    #[test]
     fn a_clear_pass_waits_for_every_stratum_to_be_seen() {
         // A lamp's 40 own pixels at the first look of 2048: 5 of them, too few for their spread.
         assert!(!strata_known(&[(5, 40), (251, 2008)]));
@@ -1383,24 +1214,5 @@ mod tests {
         assert!(strata_known(&[(3, 3), (253, 2045)]));
         // An empty stratum is all of itself.
         assert!(strata_known(&[(0, 0), (256, 2048)]));
-    }
-
-    #[test]
-    fn a_test_passes_early_only_beyond_reasonable_doubt() {
-        // A gain of 1 at se 0.1 after 256 of 2048 pixels: lower bound 0.7, above 3 · 0.1 · √(1/8) ≈ 0.11.
-        assert!(clearly_passes(1.0, 0.1, 256, 2048, 0.0));
-        // The same when the pass also needs a gain of 0.8: the lower bound 0.7 is below it, so the test goes on.
-        assert!(!clearly_passes(1.0, 0.1, 256, 2048, 0.8));
-        // t = 4 on 256 pixels (mean 0.4, se 0.1): lower bound 0.1, under the 0.11 a pass on all pixels needs.
-        assert!(!clearly_passes(0.4, 0.1, 256, 2048, 0.0));
-        // A worse fit never passes early, and the last look is decided by its own rule.
-        assert!(!clearly_passes(-1.0, 0.1, 256, 2048, 0.0));
-        assert!(!clearly_passes(1.0, 0.1, 2048, 2048, 0.0));
-        // Wherever it stops, the gain on the pixels seen passes the test's own rule: t > T_KEEP and the gain
-        // above the minimum.
-        for (mean, se, min_gain) in [(1.0, 0.1, 0.0), (0.9, 0.05, 0.5), (0.2, 0.01, 0.1), (0.46, 0.1, 0.0)] {
-            assert!(clearly_passes(mean, se, 512, 2048, min_gain), "{mean} ± {se} should pass early");
-            assert!(mean / se > T_KEEP && mean > min_gain);
-        }
     }
 }

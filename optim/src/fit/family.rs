@@ -1,0 +1,213 @@
+//! A second look at each object's lobe family once the room's light is settled (the emission test and the
+//! horizon split have run). The first look (`super::select`) searches the metal family only where a
+//! dielectric's specular strength binds, and under lights still uniform at the horizon: a polished metal whose
+//! dielectric fit stays below its bound comes out a dark, tinted diffuse surface. Here every constrained
+//! non-emitting object that ended dielectric is probed with a metal lobe, and a metal is kept only where the
+//! held-out pixels prefer it both to the object's model and to the best dielectric lobe under the same light
+//! (measured: docs/optim/design-measurements.md, "A second look at the lobe family").
+
+use super::jacobian::Ctx;
+use super::layout::{BASE_COLOR, METALLIC, ROUGHNESS, SPECULAR, idx};
+use super::linear::paired_t;
+use super::paired::{MIN_GAIN, T_KEEP, Verdict, sequential_lobe_test};
+use super::pixels::{PixelSets, Sample};
+use super::roughness::{self, TRIAL_ROUGHNESS, TRIAL_SPECULAR, profile_samples};
+use super::{FitError, ObjectFitSettings};
+use crate::progress::check_stop;
+use crate::streams::key;
+
+/// Roughness of the metal probes (0.22 and 0.45): the middle points of the search's coarse grid ([`roughness::GRID`]), where a polished or brushed metal's reflection of the room is
+/// sharp enough to tell it from a diffuse surface.
+const METAL_PROBES: [f64; 2] = [roughness::GRID[2], roughness::GRID[4]];
+/// The roughest metal the second look searches (0.62, the grid's next-to-last point). Above it a metal's lobe spreads over the hemisphere and lights
+/// its pixels nearly as a diffuse surface of the same colour does; probed there, diffuse walls and boxes of the
+/// corpus house preferred a metal by 5–85× [`roughness::FLAT_PROFILE`], absorbing what the room's light got
+/// wrong, and the lobe test kept 8 of them (docs/optim/design-measurements.md, "A metal probe for dielectrics
+/// below their bound").
+const METAL_ROUGHEST: f64 = roughness::GRID[5];
+
+/// The second look for every free object without emission whose metallic is below one half (`x`, `free`,
+/// `emits` as model selection ends with them). The metal family is probed at [`METAL_PROBES`] against the
+/// object's model refitted at its own roughness (the profile solve of [`roughness::profile`], on the object's
+/// lobe-choosing pixels); where a probe beats it by [`roughness::FLAT_PROFILE`] of the pixels' mean, the metal's
+/// roughness is searched up to [`METAL_ROUGHEST`] and the dielectric family's best lobe is searched again. Both
+/// paired tests run on `lobe_test` (the first look's test pixels): the metal against the model, then, where it
+/// passes, against the dielectric lobe; it is kept where both pass (t > [`T_KEEP`] and a gain above
+/// [`MIN_GAIN`] of `mean_target`). The light and the other objects stay as fitted: a switched object's base
+/// colour is its profile solve's, under the settled light. Each decision is added to `why`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn second_look(
+    ctx: &Ctx<'_>,
+    s: &ObjectFitSettings,
+    sets: &PixelSets,
+    lobe_test: &[Sample],
+    mean_target: f64,
+    x: &mut [f64],
+    (free, emits): (&[bool], &[bool]),
+    glossy: &mut [bool],
+    why: &mut [Vec<String>],
+    progress: &dyn crate::Progress,
+) -> Result<(), FitError> {
+    let k_count = free.len();
+    let candidates: Vec<usize> = (0..k_count).filter(|&k| free[k] && !emits[k] && x[idx(k, METALLIC)] < 0.5).collect();
+    progress.phase("model selection: metal probe, object", candidates.len() as u64, 0);
+    let spp = (s.solve_spp / 2).max(1);
+    let (mut xt, mut xd) = (x.to_vec(), x.to_vec());
+    let mut tested = vec![false; k_count];
+    let mut probed: Vec<Option<(f64, f64)>> = vec![None; k_count];
+    let mut dielectric: Vec<Option<roughness::ProfilePoint>> = vec![None; k_count];
+    for (done, &k) in candidates.iter().enumerate() {
+        check_stop(progress)?;
+        progress.set_position(done as u64);
+        let samples = profile_samples(ctx, sets, k);
+        if samples.is_empty() {
+            continue;
+        }
+        let key = key::SELECT_METAL + k as u64;
+        let current = roughness::profile(ctx, x, k, x[idx(k, ROUGHNESS)], &samples, spp, key)?;
+        let mut at_metal = x.to_vec();
+        at_metal[idx(k, METALLIC)] = 1.0;
+        let mut probe = f64::INFINITY;
+        for r in METAL_PROBES {
+            probe = probe.min(roughness::profile(ctx, &at_metal, k, r, &samples, spp, key)?.loss);
+        }
+        probed[k] = Some((current.loss, probe));
+        if probe > current.loss - roughness::FLAT_PROFILE * roughness::mean_target(&samples) {
+            continue;
+        }
+        let (best, evals) = roughness::search_up_to(ctx, &at_metal, k, &samples, spp, key, METAL_ROUGHEST)?;
+        tracing::debug!(object = k, ?best, evals = evals.len(), current = current.loss, "metal search");
+        for c in 0..3 {
+            xt[idx(k, BASE_COLOR + c)] = best.base_color[c];
+        }
+        xt[idx(k, ROUGHNESS)] = best.roughness;
+        xt[idx(k, METALLIC)] = best.metallic;
+        // The dielectric family's best lobe under the same light, from the first look's mid-range start.
+        let mut at_dielectric = x.to_vec();
+        at_dielectric[idx(k, SPECULAR)] = TRIAL_SPECULAR;
+        at_dielectric[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
+        let (d, _) = roughness::search(ctx, &at_dielectric, k, &samples, spp, key)?;
+        for c in 0..3 {
+            xd[idx(k, BASE_COLOR + c)] = d.base_color[c];
+        }
+        xd[idx(k, ROUGHNESS)] = d.roughness;
+        xd[idx(k, SPECULAR)] = d.specular;
+        dielectric[k] = Some(d);
+        tested[k] = true;
+    }
+    progress.set_position(candidates.len() as u64);
+    if !tested.iter().any(|&t| t) {
+        return Ok(());
+    }
+    let verdicts = sequential_lobe_test(
+        ctx,
+        s,
+        lobe_test,
+        &tested,
+        (x, &xt),
+        mean_target,
+        key::SELECT_METAL_TEST,
+        progress,
+        "metal test",
+    )?;
+    // The metals that beat the current model face the dielectric family's best lobe: the evidence must be for
+    // a metal, not for any lobe.
+    let beats_current: Vec<bool> = verdicts.iter().map(|v| v.as_ref().is_some_and(|v| v.passes(mean_target))).collect();
+    let against_dielectric = if beats_current.iter().any(|&b| b) {
+        sequential_lobe_test(
+            ctx,
+            s,
+            lobe_test,
+            &beats_current,
+            (&xd, &xt),
+            mean_target,
+            key::SELECT_METAL_TEST,
+            progress,
+            "metal test against the dielectric lobes",
+        )?
+    } else {
+        Vec::new()
+    };
+    for (k, v) in verdicts.iter().enumerate().filter_map(|(k, v)| v.as_ref().map(|v| (k, v))) {
+        let (gain, t) = paired_t(&v.d);
+        let rel = gain / mean_target.max(f64::MIN_POSITIVE);
+        let (current, probe) = probed[k].unwrap_or((f64::NAN, f64::NAN));
+        let lobe = format!(
+            "a metal lobe (roughness {:.3}, base colour {:.3?}; profile loss {probe:.4} against {current:.4} at the probes)",
+            xt[idx(k, ROUGHNESS)],
+            [xt[idx(k, BASE_COLOR)], xt[idx(k, BASE_COLOR + 1)], xt[idx(k, BASE_COLOR + 2)]],
+        );
+        if let Some(vd) = against_dielectric.get(k).and_then(Option::as_ref) {
+            let (gain_d, t_d) = paired_t(&vd.d);
+            let rel_d = gain_d / mean_target.max(f64::MIN_POSITIVE);
+            let d = dielectric[k].expect("a tested metal has its dielectric alternative");
+            let against = format!(
+                "it lowers the lobe test's L1 by {:.1} % of the mean radiance on {} (t = {t:.1}), and by {:+.2} % on {} \
+                 (t = {t_d:.1}) against the best dielectric lobe there (roughness {:.3}, specular {:.3})",
+                100.0 * rel,
+                v.on(),
+                100.0 * rel_d,
+                vd.on(),
+                d.roughness,
+                d.specular
+            );
+            if keeps_metal(v, Some(vd), mean_target) {
+                glossy[k] = true;
+                for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
+                    x[idx(k, p)] = xt[idx(k, p)];
+                }
+                why[k].push(format!("under the settled light, {lobe} kept: {against}"));
+            } else {
+                why[k].push(format!(
+                    "under the settled light, {lobe} not kept: {against} (needs t > {T_KEEP} and > {:.1} % against both)",
+                    100.0 * MIN_GAIN
+                ));
+            }
+        } else {
+            why[k].push(format!(
+                "under the settled light, {lobe} not kept: it changed the lobe test's L1 by {:+.2} % on {} (t = {t:.1}; needs t > {T_KEEP} and > {:.1} %)",
+                -100.0 * rel,
+                v.on(),
+                100.0 * MIN_GAIN
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Whether the second look keeps a metal lobe: it beats the object's model, and then (tested only where it
+/// does) the dielectric family's best lobe, each by [`Verdict::passes`].
+fn keeps_metal(against_model: &Verdict, against_dielectric: Option<&Verdict>, mean_target: f64) -> bool {
+    against_model.passes(mean_target) && against_dielectric.is_some_and(|v| v.passes(mean_target))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::paired::Stop;
+
+    /// Paired differences of mean `gain` with an alternating spread of ±0.01 (t ≈ gain / 0.01 · √n).
+    fn verdict(gain: f64, n: usize, stopped: Option<Stop>) -> Verdict {
+        let d = (0..n).map(|i| gain + if i % 2 == 0 { 0.01 } else { -0.01 }).collect();
+        Verdict { d, n_full: 2048, stopped }
+    }
+
+    #[test]
+    fn a_metal_is_kept_only_where_it_beats_both_the_model_and_the_dielectric_lobe() {
+        let mean = 1.0;
+        let clear = verdict(0.05, 2048, None);
+        // Better than the model, and than the dielectric lobe: kept.
+        assert!(keeps_metal(&clear, Some(&verdict(0.02, 2048, None)), mean));
+        // Better than the model, but the dielectric lobe explains the pixels as well (a floor that asks for a
+        // lobe, not for a metal): refused.
+        assert!(!keeps_metal(&clear, Some(&verdict(0.0, 2048, None)), mean));
+        assert!(!keeps_metal(&clear, Some(&verdict(-0.03, 256, Some(Stop::CannotPass))), mean));
+        // A gain over the dielectric that is significant but under MIN_GAIN of the pixels' mean: refused.
+        assert!(!keeps_metal(&clear, Some(&verdict(0.004, 2048, None)), mean));
+        // Not better than the model: refused, whatever the dielectric comparison says (it is then not run).
+        assert!(!keeps_metal(&verdict(0.0, 2048, None), Some(&clear), mean));
+        assert!(!keeps_metal(&verdict(0.05, 256, Some(Stop::CannotPass)), None, mean));
+        // A metal that beat its model but was never compared with the dielectric lobe is not kept.
+        assert!(!keeps_metal(&clear, None, mean));
+    }
+}
