@@ -55,7 +55,6 @@ pub(super) fn second_look(
     let (mut xt, mut xd) = (x.to_vec(), x.to_vec());
     let mut tested = vec![false; k_count];
     let mut probed: Vec<Option<(f64, f64)>> = vec![None; k_count];
-    let mut dielectric: Vec<Option<roughness::ProfilePoint>> = vec![None; k_count];
     for (done, &k) in candidates.iter().enumerate() {
         check_stop(progress)?;
         progress.set_position(done as u64);
@@ -92,7 +91,6 @@ pub(super) fn second_look(
         }
         xd[idx(k, ROUGHNESS)] = d.roughness;
         xd[idx(k, SPECULAR)] = d.specular;
-        dielectric[k] = Some(d);
         tested[k] = true;
     }
     progress.set_position(candidates.len() as u64);
@@ -140,7 +138,6 @@ pub(super) fn second_look(
         if let Some(vd) = against_dielectric.get(k).and_then(Option::as_ref) {
             let (gain_d, t_d) = paired_t(&vd.d);
             let rel_d = gain_d / mean_target.max(f64::MIN_POSITIVE);
-            let d = dielectric[k].expect("a tested metal has its dielectric alternative");
             let against = format!(
                 "it lowers the lobe test's L1 by {:.1} % of the mean radiance on {} (t = {t:.1}), and by {:+.2} % on {} \
                  (t = {t_d:.1}) against the best dielectric lobe there (roughness {:.3}, specular {:.3})",
@@ -148,8 +145,8 @@ pub(super) fn second_look(
                 v.on(),
                 100.0 * rel_d,
                 vd.on(),
-                d.roughness,
-                d.specular
+                xd[idx(k, ROUGHNESS)],
+                xd[idx(k, SPECULAR)]
             );
             if keeps_metal(v, Some(vd), mean_target) {
                 glossy[k] = true;
