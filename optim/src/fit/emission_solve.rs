@@ -9,7 +9,8 @@
 //! - [`Unknowns::EmissionAndBaseColor`]: one Gauss–Newton step on emission and base colour jointly, with a
 //!   Levenberg–Marquardt proximal term on base colour. Moving both together is what crosses the
 //!   albedo/emission scale valley that alternating or joint first-order steps creep along. The step keeps the
-//!   emitters it starts from: no emission penalty, objects that do not emit pinned at 0. Which objects emit is
+//!   emitters it starts from, or those its caller gives ([`Support`]): no emission penalty, objects that do
+//!   not emit pinned at 0. Which objects emit is
 //!   chosen where it is identifiable — by the emission-only solves (materials fixed) and model selection — and
 //!   not here: the linearisation has a spurious near-degeneracy between a light and every albedo it shines on
 //!   (I = J_e·e exactly, and J_ρ·ρ₀ ≈ I as well), along which the penalty dragged a hidden light's channel to
@@ -32,10 +33,44 @@ pub enum Unknowns {
     EmissionAndBaseColor,
 }
 
+/// Which objects a joint step ([`Unknowns::EmissionAndBaseColor`]) treats as emitters, besides those the
+/// caller holds at 0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Support {
+    /// Those that emit when the step starts: an object whose emission is 0 in every channel stays at 0 (the step
+    /// keeps the emitters it starts from; the refinement, whose emitters the emission-only solves chose).
+    Current,
+    /// Those, and every emitter no photo sees (its base colour not free) that the caller does not hold at 0: a
+    /// hidden light whose emission one step takes to 0 is still an unknown of the next. A hidden light is
+    /// reached only through the albedos it lights, along the linearisation's near-degeneracy (module docs);
+    /// under `Current` a single step to 0 is final, and on the corpus house (natively rendered photos, seed 0)
+    /// the re-fit after a dropped emission took an unseen ceiling lamp that its emission test had kept at
+    /// t = 16.2 to 0 for good, and its room's floor and ceiling to an albedo of 1. A seen emitter's own pixels
+    /// constrain it directly: one that a step takes to 0 stays there, as under `Current` (freed as well, a
+    /// wall of Daylight Room kept a spurious emission). Measured: docs/scale/README.md, "Accuracy on natively
+    /// rendered photos".
+    KeepHidden,
+}
+
+/// Whether each object's emission is held at 0 in a solve: the caller's `no_emission` verdicts, and in a joint
+/// step every object that does not emit now (`dark[k]`: 0 in every channel), except under
+/// [`Support::KeepHidden`] those no photo sees (`seen[k]` false).
+fn pinned_objects(no_emission: &[bool], dark: &[bool], seen: &[bool], joint: bool, support: Support) -> Vec<bool> {
+    dark.iter()
+        .enumerate()
+        .map(|(k, &d)| {
+            let hidden = !seen.get(k).copied().unwrap_or(true);
+            no_emission.get(k).copied().unwrap_or(false) || (joint && d && !(support == Support::KeepHidden && hidden))
+        })
+        .collect()
+}
+
 /// Options of one solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolveOptions {
     pub unknowns: Unknowns,
+    /// The emitters of a joint step (ignored by an emission-only solve, which chooses them).
+    pub support: Support,
     pub loss: DataLoss,
     /// λ of the relative emission penalty.
     pub emission_l1: f64,
@@ -138,11 +173,8 @@ pub fn solve_step_pinned(
     let triple = |k: usize, at: usize| [x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]];
     // The joint step keeps the emitters it is given (see the module docs): no emission penalty, and an object
     // that does not emit does not start to.
-    let pinned_object: Vec<bool> = (0..k_count)
-        .map(|k| {
-            no_emission.get(k).copied().unwrap_or(false) || (joint && triple(k, EMISSION).iter().all(|&v| v == 0.0))
-        })
-        .collect();
+    let dark: Vec<bool> = (0..k_count).map(|k| triple(k, EMISSION).iter().all(|&v| v == 0.0)).collect();
+    let pinned_object = pinned_objects(no_emission, &dark, free_base_color, joint, opts.support);
     let pinned: Vec<bool> = unknowns.iter().map(|&(k, _, _)| pinned_object[k]).collect();
     let opts = &if joint { SolveOptions { emission_l1: 0.0, ..*opts } } else { *opts };
     let mut emission: Vec<[f64; 3]> = unknowns.iter().map(|&(k, at, _)| triple(k, at)).collect();
@@ -309,7 +341,27 @@ fn solve_relaxed_lasso(problem: Problem<'_>, n_emission: usize, opts: &SolveOpti
 
 #[cfg(test)]
 mod tests {
-    use super::basis_spp;
+    use super::{Support, basis_spp, pinned_objects};
+
+    #[test]
+    fn a_hidden_emitter_at_zero_stays_an_unknown_of_the_joint_step() {
+        // Objects: 0 held at 0 by the caller, 1 emitting, 2 a seen emitter a step took to 0, 3 a hidden one.
+        let (no_emission, dark, seen) =
+            ([true, false, false, false], [true, false, true, true], [true, true, true, false]);
+        // Under the current support both dark emitters are pinned; keeping the hidden, only the seen one is.
+        assert_eq!(pinned_objects(&no_emission, &dark, &seen, true, Support::Current), vec![true, false, true, true]);
+        assert_eq!(
+            pinned_objects(&no_emission, &dark, &seen, true, Support::KeepHidden),
+            vec![true, false, true, false]
+        );
+        // A hidden object the caller holds at 0 stays there.
+        assert_eq!(pinned_objects(&[true; 4], &dark, &seen, true, Support::KeepHidden), vec![true; 4]);
+        // An emission-only solve chooses its emitters: only the caller's verdicts pin, whatever the support.
+        assert_eq!(
+            pinned_objects(&no_emission, &dark, &seen, false, Support::Current),
+            vec![true, false, false, false]
+        );
+    }
 
     #[test]
     fn basis_renders_keep_their_paths_when_a_draw_has_more_rows() {

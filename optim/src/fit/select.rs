@@ -19,7 +19,7 @@
 //! reaches pay for it. Last, under that settled light, `super::family` takes a second look at the lobe family
 //! of every object that ended dielectric, and keeps a metal lobe where the held-out pixels ask for one.
 
-use super::emission_solve::{Unknowns, solve_step_pinned};
+use super::emission_solve::{SolveOptions, Support, Unknowns, solve_step_pinned};
 use super::family;
 use super::horizon;
 use super::jacobian::{self, Ctx};
@@ -81,6 +81,9 @@ fn emission_beats(alternative: Option<[f64; 3]>, t: f64, rel: f64) -> bool {
 /// refinement's result is): the closing re-fits of the specular trial and of a dropped emission.
 struct AveragedSteps {
     unknowns: Unknowns,
+    /// The emitters of the joint steps: those that emit as each step starts, and under
+    /// [`Support::KeepHidden`] every hidden light `apply` does not hold at 0.
+    support: Support,
     /// Number of steps (≥ 1); step i ∈ 1..=steps uses random-number key `key + i`, its check
     /// `key + SELECT_STEP_CHECK + i`.
     steps: u32,
@@ -99,7 +102,7 @@ impl AveragedSteps {
         no_emission: &[bool],
         progress: &dyn crate::Progress,
     ) -> Result<(), FitError> {
-        let opts = solve_options(s, self.unknowns);
+        let opts = SolveOptions { support: self.support, ..solve_options(s, self.unknowns) };
         let mut sum = vec![0.0; x.len()];
         let mut n_avg = 0.0;
         for step in 1..=self.steps {
@@ -664,7 +667,12 @@ pub fn choose_models(
             let steps = s.specular_trial_steps;
             let unknowns = if steps == 0 { Unknowns::Emission } else { Unknowns::EmissionAndBaseColor };
             let none = vec![false; k_count];
-            let run = AveragedSteps { unknowns, steps: steps.max(1), key: key::SELECT_SPECULAR_STEPS };
+            let run = AveragedSteps {
+                unknowns,
+                support: Support::Current,
+                steps: steps.max(1),
+                key: key::SELECT_SPECULAR_STEPS,
+            };
             progress.phase("model selection: re-fit with the lobes, step", u64::from(run.steps), 0);
             run.apply(ctx, s, sets, &mut x, free, &none, progress)?;
         }
@@ -1113,10 +1121,12 @@ pub fn choose_models(
     if material_refit || !all.is_empty() {
         // A dropped emission had been standing in for albedo, or the albedos were fitted under uniform emitters
         // that the horizon test may split: re-fit emission and base colour under the chosen model
-        // (non-emitters pinned at 0), averaging the steps' second half like the refinement.
+        // (non-emitters pinned at 0), averaging the steps' second half like the refinement. A hidden light the
+        // emission test kept is still an unknown of the next step after one that takes it to 0.
         let no_emission: Vec<bool> = emits.iter().map(|e| !e).collect();
         let run = AveragedSteps {
             unknowns: Unknowns::EmissionAndBaseColor,
+            support: Support::KeepHidden,
             steps: s.refine_steps.max(2),
             key: key::SELECT_EMISSION_REFIT,
         };

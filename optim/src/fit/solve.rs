@@ -2,7 +2,7 @@
 //! ([`super::select`]): the options of the linearised solves, the pixels each solve draws, and the pixel count
 //! below which an object's material is unconstrained.
 
-use super::emission_solve::{SolveOptions, Unknowns};
+use super::emission_solve::{SolveOptions, Support, Unknowns};
 use super::linear::DataLoss;
 use super::pixels::{PixelSets, WeightedDraw};
 use super::settings::ObjectFitSettings;
@@ -23,6 +23,7 @@ const GN_DAMPING: f64 = 0.1;
 pub(crate) fn solve_options(s: &ObjectFitSettings, unknowns: Unknowns) -> SolveOptions {
     SolveOptions {
         unknowns,
+        support: Support::Current,
         // Huber with one corner per object, not L1: on an object whose pixels have two colours L1's minimum is
         // flat between them (docs/optim/design-measurements.md, "Solve pixels per object and the checker
         // light").

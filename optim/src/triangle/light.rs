@@ -500,6 +500,7 @@ mod tests {
         let mut scale = vec![[1.0; 3]];
         let opts = SolveOptions {
             unknowns: Unknowns::EmissionAndBaseColor,
+            support: crate::fit::emission_solve::Support::Current,
             loss: DataLoss::L2,
             emission_l1: 0.0,
             damping: LIGHT_DAMPING,
