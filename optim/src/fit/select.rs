@@ -580,7 +580,10 @@ pub fn choose_models(
 
     // Specular lobe trial.
     let mut glossy = vec![false; k_count];
-    if s.try_specular && free.iter().any(|&f| f) {
+    let try_lobes = s.try_specular && free.iter().any(|&f| f);
+    // The pixels of the lobe tests, for the first look below and the second look at the end.
+    let lobe_test = if try_lobes { lobe_test_samples(ctx, sets, test, budget) } else { Vec::new() };
+    if try_lobes {
         // Each object's lobe from a 1-D search on roughness with base colour and specular profiled out
         // ([`roughness`]), on its own training pixels, the other objects diffuse as fitted.
         // Half of every object's training pixels choose its lobe; the other half join the held-out pixels in
@@ -590,7 +593,6 @@ pub fn choose_models(
         // all of its held-out pixels, then training pixels up to the budget (2048 detect a 4 % gain on glossy
         // highlights at t > 3, `object.holdout_pixels` in configs/README.md; a large object's 4096 doubled the
         // test's renders, the largest cost of a 213-object house's object stage).
-        let lobe_test = lobe_test_samples(ctx, sets, test, budget);
         let mut xt = x.clone();
         let n_free = free.iter().filter(|&&f| f).count();
         progress.phase("model selection: lobe search, object", n_free as u64, 0);
@@ -1151,9 +1153,8 @@ pub fn choose_models(
     } else {
         horizon::test(&ctx_all, s, (test, test_name), &horizon_lit, &mut x, &mut why, progress)?
     };
-    if s.try_specular && free.iter().any(|&f| f) {
+    if try_lobes {
         let ctx_split = Ctx { split: &split, ..*ctx };
-        let lobe_test = lobe_test_samples(ctx, sets, test, budget);
         family::second_look(
             &ctx_split,
             s,
