@@ -188,6 +188,7 @@ pub fn solve_step_pinned(
         &mut emission,
         &pinned,
         &mut base_color,
+        &[],
         &vec![[1.0; 3]; free.len()],
         opts,
     );
@@ -212,19 +213,19 @@ pub struct Columns<'a> {
     pub b: &'a [Vec<[f64; 3]>],
 }
 
-/// [`solve_step_pinned`]'s per-channel solve on Jacobian columns the caller estimated, for scenes whose material table
-/// is not per object (the per-triangle stage): unknowns are the listed emissions `emission[i]` (columns
+/// [`solve_step_pinned`]'s per-channel solve on Jacobian columns the caller estimated, for scenes whose material
+/// table is not per object (the per-triangle stage): unknowns are the listed emissions `emission[i]` (columns
 /// `emission_cols`, exact since radiance is linear in emission) and material unknowns `material[i]` (columns
-/// `material_cols`, a linearisation about their current values; empty for an emission-only solve), over the
-/// pixels whose photo values are `targets`, with row weights `weights` (empty: all 1; see
-/// [`linear::Problem::weights`]) and row groups `groups` (the object each pixel sees, for
-/// [`DataLoss::GroupHuber`]; empty: one group). Same estimator: the two column estimates as instrumental
-/// variables, IRLS-L1 (or L2), the relative emission lasso relaxed on its support, e ∈ [0, EMISSION_MAX],
-/// Marquardt damping `opts.damping · mean_j J_ij²` of each material unknown towards its current value and the
-/// box [0, `material_hi[i]`]. Emissions with `emission_pinned[i]` are held at 0 (a model-selection verdict;
-/// the slice may be shorter than `emission`: missing entries are free); emitters not listed at all must be held
-/// at 0 by the caller. Returns the mean per-channel L1 residual before the update. The one assembly of these
-/// problems: the object stage's [`solve_step_pinned`] and the per-triangle stage's light re-solve both call it.
+/// `material_cols`, a linearisation about their current values; empty for an emission-only solve), over the pixels
+/// whose photo values are `targets`, with row weights `weights` (empty: all 1; see [`linear::Problem::weights`])
+/// and row groups `groups` (the object each pixel sees, for [`DataLoss::GroupHuber`]; empty: one group). Same
+/// estimator: the two column estimates as instrumental variables, IRLS-L1 (or L2), the relative emission lasso
+/// relaxed on its support, e ∈ [0, EMISSION_MAX], Marquardt damping `opts.damping · mean_j J_ij²` of each material
+/// unknown towards its current value and the box [`material_lo[i]`, `material_hi[i]`] (`material_lo` empty: 0).
+/// Emissions with `emission_pinned[i]` are held at 0 (a model-selection verdict; the slice may be shorter than
+/// `emission`: missing entries are free); emitters not listed at all must be held at 0 by the caller. Returns the
+/// mean per-channel L1 residual before the update. The one assembly of these problems: the object stage's
+/// [`solve_step_pinned`] and the per-triangle stage's light re-solve both call it.
 #[allow(clippy::too_many_arguments)]
 pub fn solve_on_columns(
     emission_cols: Columns<'_>,
@@ -235,6 +236,7 @@ pub fn solve_on_columns(
     emission: &mut [[f64; 3]],
     emission_pinned: &[bool],
     material: &mut [[f64; 3]],
+    material_lo: &[[f64; 3]],
     material_hi: &[[f64; 3]],
     opts: &SolveOptions,
 ) -> f64 {
@@ -260,7 +262,7 @@ pub fn solve_on_columns(
             let mut penalty = vec![0.0; n];
             let mut prox = vec![0.0; n];
             let mut anchor = vec![0.0; n];
-            let lo = vec![0.0; n];
+            let mut lo = vec![0.0; n];
             let mut hi = vec![EMISSION_MAX; n];
             let mut var = vec![0.0; n];
             for k in 0..ne {
@@ -292,6 +294,7 @@ pub fn solve_on_columns(
                 let diag = wmean(&mut ca.iter().zip(&cb).map(|(a, b)| (a * b).abs()));
                 prox[v] = opts.damping * diag;
                 anchor[v] = x0;
+                lo[v] = material_lo.get(i).map_or(0.0, |l| l[c]);
                 hi[v] = material_hi[i][c];
                 var[v] = x0;
                 cols.push(ca);
@@ -361,6 +364,48 @@ mod tests {
             pinned_objects(&no_emission, &dark, &seen, false, Support::Current),
             vec![true, false, false, false]
         );
+    }
+
+    #[test]
+    fn a_material_unknown_stays_in_its_box_from_below() {
+        // One light (column 1 on every row) and one material unknown linearised about 1 whose column is 1 on the
+        // even rows: I_j = e + (x − 1)·[j even]. Photos of 1 on the odd rows and 0 on the even ones call for
+        // e = 1 and x = 0; held at x ≥ 1/2, the least-squares light is the mean of 1 and 1/2.
+        let rows = 8;
+        let light: Vec<[f64; 3]> = vec![[1.0; 3]; rows];
+        let material: Vec<[f64; 3]> = (0..rows).map(|j| [if j % 2 == 0 { 1.0 } else { 0.0 }; 3]).collect();
+        let targets: Vec<glam::Vec3> = (0..rows).map(|j| glam::Vec3::splat((j % 2) as f32)).collect();
+        let opts = super::SolveOptions {
+            unknowns: super::Unknowns::EmissionAndBaseColor,
+            support: Support::Current,
+            loss: super::DataLoss::L2,
+            emission_l1: 0.0,
+            damping: 0.0,
+            irls_iters: 1,
+            basis_rows: usize::MAX,
+        };
+        let solve = |lo: &[[f64; 3]]| {
+            let (mut e, mut x) = (vec![[1.0; 3]], vec![[1.0; 3]]);
+            let (le, lm) = (vec![light.clone()], vec![material.clone()]);
+            super::solve_on_columns(
+                super::Columns { a: &le, b: &le },
+                super::Columns { a: &lm, b: &lm },
+                &targets,
+                &[],
+                &[],
+                &mut e,
+                &[],
+                &mut x,
+                lo,
+                &[[2.0; 3]],
+                &opts,
+            );
+            (e[0][0], x[0][0])
+        };
+        let (e, x) = solve(&[]);
+        assert!((e - 1.0).abs() < 1e-6 && x.abs() < 1e-6, "unbounded below: e {e}, x {x}");
+        let (e, x) = solve(&[[0.5; 3]]);
+        assert!((x - 0.5).abs() < 1e-12 && (e - 0.75).abs() < 1e-6, "bounded at 1/2: e {e}, x {x}");
     }
 
     #[test]

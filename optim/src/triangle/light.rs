@@ -39,29 +39,39 @@ pub const LIGHT_SIGNIFICANCE: f64 = 0.01;
 /// units). Measured in `docs/optim/design-measurements.md`.
 const LIGHT_DAMPING: f64 = 1e-3;
 
+/// Per joint step of [`solve_light`], an albedo scale stays within [1/`LIGHT_SCALE_TRUST`,
+/// `LIGHT_SCALE_TRUST`] (a trust region about the linearisation point s = 1). The step needs scales of the
+/// light's own relative error (the object stage's unseen lamps were up to 69 % off, a factor 1.7), but each
+/// object's scale rests on a few dozen rows and two Monte Carlo estimates of its column, whose ratio (the
+/// instrumental-variables estimate) has heavy tails: on the natively rendered house one step put 30 of 189
+/// scales outside [1/2, 2], from 0 to 81 (docs/optim/design-measurements.md, "Albedo scales of the light
+/// re-solve"). A scale of 0 is final — an object at base colour 0 has a zero column in every later step, and
+/// the ratio steps multiply its value — so whole walls and floors ended black.
+pub const LIGHT_SCALE_TRUST: f64 = 2.0;
+
 /// One pixel's Jacobian entries in [`solve_light`]: per emitter ∂I/∂e_k, per scaled object ∂I/∂s_o (RGB).
 type LightRow = (Vec<[f64; 3]>, Vec<[f64; 3]>);
 
 /// One unknown's Jacobian column over the solve's pixels (RGB).
 type Column = Vec<[f64; 3]>;
 
-/// One Gauss–Newton step on the light with the per-triangle textures fixed in shape: the unknowns are the
-/// emission of `emitters` (objects) and, per colour channel, one scale s_o of the base colours of every
-/// non-emitting object (ρ_t → s_o·ρ_t for its triangles). Radiance is linear in emission, and the ratio steps
-/// only set each triangle's value *given* the light: a light that is off by a factor is compensated by albedos
-/// off by its inverse (the albedo/emission scale valley, which only interreflection pins down), so re-solving
-/// the emission alone with those albedos returns the same light. Moving the light and every object's albedo
-/// scale together crosses that valley, as the object stage's joint step does. Same estimator
-/// ([`crate::fit::emission_solve::solve_on_columns`]): the emission columns ∂I/∂e_k and the scale columns
-/// ∂I/∂s_o = Σ_(t ∈ o) ρ_t ∂I/∂ρ_t from the same gradient paths, two independent estimates (instrumental
-/// variables), IRLS-L1, relative emission lasso relaxed on its support, Marquardt damping of the scales,
-/// s_o ≤ 1/max ρ_t (no albedo above 1); on pixels drawn from the round's pixels as the object stage's solves
-/// draw them (`strata`: per object its [`SOLVE_FLOOR`] pixels, the rest of `object.solve_pixels` in proportion
-/// to the objects' pixels, weighted so that the data term estimates the mean over all of them without bias),
-/// `object.solve_spp` paths per entry — the object stage's solve size. Drawn uniformly instead, the 1024 pixels
-/// of a 213-object house gave each seen lamp 0.03–0.7 rows on average (it covers 0.003–0.06 % of the photos),
-/// and the averaged steps took a seen lamp to 4× its emission and an unseen one to 245× in one channel. Every
-/// other object's emission stays 0. Keyed by (seed, round, pass).
+/// One Gauss–Newton step on the light with the per-triangle textures fixed in shape: the unknowns are the emission
+/// of `emitters` (objects) and, per colour channel, one scale s_o of the base colours of every non-emitting object
+/// (ρ_t → s_o·ρ_t for its triangles). Radiance is linear in emission, and the ratio steps only set each triangle's
+/// value *given* the light: a light that is off by a factor is compensated by albedos off by its inverse (the
+/// albedo/emission scale valley, which only interreflection pins down), so re-solving the emission alone with those
+/// albedos returns the same light. Moving the light and every object's albedo scale together crosses that valley,
+/// as the object stage's joint step does. Same estimator ([`crate::fit::emission_solve::solve_on_columns`]): the
+/// emission columns ∂I/∂e_k and the scale columns ∂I/∂s_o = Σ_(t ∈ o) ρ_t ∂I/∂ρ_t from the same gradient paths, two
+/// independent estimates (instrumental variables), IRLS-L1, relative emission lasso relaxed on its support,
+/// Marquardt damping of the scales, s_o ≤ 1/max ρ_t (no albedo above 1) and within the trust region of
+/// [`LIGHT_SCALE_TRUST`]; on pixels drawn from the round's pixels as the object stage's solves draw them (`strata`:
+/// per object its [`SOLVE_FLOOR`] pixels, the rest of `object.solve_pixels` in proportion to the objects' pixels,
+/// weighted so that the data term estimates the mean over all of them without bias), `object.solve_spp` paths per
+/// entry — the object stage's solve size. Drawn uniformly instead, the 1024 pixels of a 213-object house gave each
+/// seen lamp 0.03–0.7 rows on average (it covers 0.003–0.06 % of the photos), and the averaged steps took a seen
+/// lamp to 4× its emission and an unseen one to 245× in one channel. Every other object's emission stays 0. Keyed
+/// by (seed, round, pass).
 #[allow(clippy::too_many_arguments)]
 fn solve_light(
     inputs: &RoundInputs<'_>,
@@ -153,8 +163,13 @@ fn solve_light(
             top[i] = top[i].max(m.base_color.as_dvec3());
         }
     }
-    // No albedo above 1; a channel that is 0 on every triangle has a zero column and keeps its scale 1.
-    let hi: Vec<[f64; 3]> = top.iter().map(|m| m.to_array().map(|v| if v > 0.0 { 1.0 / v } else { 1.0 })).collect();
+    // No albedo above 1; a channel that is 0 on every triangle has a zero column and keeps its scale 1. Within
+    // the trust region (`LIGHT_SCALE_TRUST`); 1/max ρ ≥ 1 keeps the box non-empty.
+    let hi: Vec<[f64; 3]> = top
+        .iter()
+        .map(|m| m.to_array().map(|v| if v > 0.0 { (1.0 / v).min(LIGHT_SCALE_TRUST) } else { 1.0 }))
+        .collect();
+    let lo: Vec<[f64; 3]> = hi.iter().map(|h| h.map(|h| (1.0 / LIGHT_SCALE_TRUST).min(h))).collect();
     let before = e.clone();
     // L2, not the object stage's IRLS-L1: the ratio steps match sums (means) of photo and render, and an L1
     // fit matches medians, which differ for the skewed Monte Carlo pixel estimates; alternating two estimators
@@ -177,6 +192,7 @@ fn solve_light(
         &mut e,
         &[],
         &mut scale,
+        &lo,
         &hi,
         &opts,
     );
@@ -519,6 +535,7 @@ mod tests {
             &mut e,
             &[],
             &mut scale,
+            &[],
             &[[2.0; 3]],
             &opts,
         );
