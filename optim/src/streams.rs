@@ -122,10 +122,11 @@ pub mod key {
     /// joined again (common random numbers, the same for every candidate; `crate::fit::horizon`).
     pub const SELECT_HORIZON_TEST: u64 = SELECT + (12 << 20);
     /// Model selection: object k's metal probes and metal roughness search in the second look at its lobe
-    /// family, at `SELECT_METAL + k` (`crate::fit::select`).
+    /// family, or, for an object the first look made metal, the search of its dielectric lobe that the second
+    /// look weighs the metal against, at `SELECT_METAL + k` (`crate::fit::family`).
     pub const SELECT_METAL: u64 = SELECT + (13 << 20);
-    /// Model selection: the renders of the second look's test, with and without the metal lobes (common random
-    /// numbers).
+    /// Model selection: the renders of the second look's tests, with and without the metal lobes (common random
+    /// numbers), and of its recheck of the first look's metals against their dielectric lobes.
     pub const SELECT_METAL_TEST: u64 = SELECT + (14 << 20);
     /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
     /// below it, the next field 2^20 above).
