@@ -56,7 +56,7 @@ pub(super) fn second_look(
     let first_metals: Vec<bool> = (0..k_count).map(|k| free[k] && !emits[k] && x[idx(k, METALLIC)] >= 0.5).collect();
     let candidates: Vec<usize> = (0..k_count).filter(|&k| free[k] && !emits[k] && x[idx(k, METALLIC)] < 0.5).collect();
     progress.phase("model selection: metal probe, object", candidates.len() as u64, 0);
-    let spp = (s.solve_spp / 2).max(1);
+    let spp = roughness::profile_spp(s.solve_spp);
     let (mut xt, mut xd) = (x.to_vec(), x.to_vec());
     let mut tested = vec![false; k_count];
     let mut probed: Vec<Option<(f64, f64)>> = vec![None; k_count];
@@ -212,7 +212,7 @@ fn recheck_metals(
 ) -> Result<(), FitError> {
     let candidates: Vec<usize> = (0..first_metals.len()).filter(|&k| first_metals[k]).collect();
     progress.phase("model selection: metal recheck, object", candidates.len() as u64, 0);
-    let spp = (s.solve_spp / 2).max(1);
+    let spp = roughness::profile_spp(s.solve_spp);
     let mut xd = x.to_vec();
     let mut tested = vec![false; first_metals.len()];
     for (done, &k) in candidates.iter().enumerate() {

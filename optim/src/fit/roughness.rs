@@ -57,6 +57,11 @@ pub(super) const TRIAL_ROUGHNESS: f64 = 0.5;
 /// a glossy object's profile over the roughness grid, at half the cost of 512 (measured below in
 /// tests/fit_glossy.rs).
 pub(super) const PROFILE_PIXELS: usize = 256;
+/// Paths per pixel of a roughness profile's renders: half the solves' `solve_spp` (at least 1), the
+/// path count behind [`PROFILE_PIXELS`]'s measurement.
+pub(super) fn profile_spp(solve_spp: u32) -> u32 {
+    (solve_spp / 2).max(1)
+}
 /// Whether a training pixel belongs to the half that chooses lobes (the other half tests them).
 pub(super) fn in_profile(seed: u64, t: &Sample) -> bool {
     streams::uniform(seed, draw::PROFILE, streams::pixel_key(t.pixel), 0) < 0.5

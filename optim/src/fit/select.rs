@@ -159,7 +159,7 @@ fn best_lobe_without_emission(
         base[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
         base[idx(k, METALLIC)] = metallic;
         let search_key = key::SELECT_EMISSION_LOBE + 2 * k as u64 + metallic as u64;
-        let (p, _) = roughness::search(ctx, &base, k, samples, (s.solve_spp / 2).max(1), search_key)?;
+        let (p, _) = roughness::search(ctx, &base, k, samples, roughness::profile_spp(s.solve_spp), search_key)?;
         for c in 0..3 {
             base[idx(k, BASE_COLOR + c)] = p.base_color[c];
         }
@@ -607,7 +607,7 @@ pub fn choose_models(
                 &base,
                 k,
                 &samples,
-                (s.solve_spp / 2).max(1),
+                roughness::profile_spp(s.solve_spp),
                 key::SELECT_ROUGHNESS + k as u64,
             )?;
             tracing::debug!(object = k, ?best, evals = evals.len(), "lobe search");
