@@ -34,7 +34,11 @@ pub fn base_color(x: &[f64], k: usize) -> [f64; 3] {
     std::array::from_fn(|c| x[idx(k, BASE_COLOR + c)])
 }
 
-/// The starting point: grey diffuse, roughness ½, no emission.
+/// Every object's roughness at the start, which a diffuse object keeps (metallic = specular = 0 is exactly
+/// Lambert, whatever the roughness): the middle of its range.
+pub const START_ROUGHNESS: f64 = 0.5;
+
+/// The starting point: grey diffuse, roughness [`START_ROUGHNESS`], no emission.
 #[must_use]
 pub fn initial(objects: usize) -> Vec<f64> {
     let mut x = vec![0.0; PER_OBJECT * objects];
@@ -42,7 +46,7 @@ pub fn initial(objects: usize) -> Vec<f64> {
         for c in 0..3 {
             x[idx(k, BASE_COLOR + c)] = 0.5;
         }
-        x[idx(k, ROUGHNESS)] = 0.5;
+        x[idx(k, ROUGHNESS)] = START_ROUGHNESS;
     }
     x
 }

@@ -387,6 +387,7 @@ mod tests {
             tri: 0,
             child: pixels::child_of(u, v),
             interior: true,
+            on_object: true,
             bary: Vec2::new(u, v),
         }
     }

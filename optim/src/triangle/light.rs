@@ -617,6 +617,7 @@ mod tests {
             tri,
             child: 0,
             interior: true,
+            on_object: true,
             bary: glam::Vec2::ZERO,
         };
         let samples: Vec<TriSample> = (0..100_000)

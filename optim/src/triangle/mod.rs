@@ -10,8 +10,8 @@
 //! - **Pixels** ([`pixels`]): the valid pixels of every prepared view whose centre ray hits the mesh, at most
 //!   `pixels_per_triangle` per triangle (a uniform sample; the budget that bounds a round's cost by the
 //!   triangles, not by the photos' pixels), with the triangle and the would-be child (4-way split) its centre
-//!   lies in, and whether the whole pixel footprint (centre and 4 corners) lies inside that triangle
-//!   ("interior").
+//!   lies in, whether the whole pixel footprint (centre and 4 corners) lies inside that triangle
+//!   ("interior"), and whether it lies on that triangle's object ("on object").
 //! - **Fit** ([`ratio`]): a closed-form multiplicative update per triangle. A diffuse triangle's radiance is
 //!   linear in its own base colour (a planar triangle does not light itself), so with the current value ρ,
 //!   the photo sum T and the rendered sum R over its pixels, ρ·T/R is the value that matches them; repeated
@@ -60,9 +60,11 @@
 //!   light moved, not whether it moved the right way.
 //! - **Shrinkage to the object** ([`ratio::shrink_to_object`]), before the smoothness solve at every step: no
 //!   per-triangle parameter the evidence does not call for. Per object, its value m is the object-level ratio
-//!   update ΣT/Σ(R/ρ) over its triangles with clean evidence (≥ 4 interior pixels), accepted only when it
-//!   differs from the object's current value significantly (χ²(3) at 99.9 %, variance from the pixels'
-//!   photo − render scatter), else the current value stays. Each triangle's ratio r_t (sampling variance v_t
+//!   update ΣT/Σ(R/ρ) over its pixels that see it alone (footprint on its triangles only, whichever of them;
+//!   at least 32), accepted only when it differs from the object's current value significantly (χ²(3) at
+//!   99.9 %, variance from those pixels' photo − render scatter), else the current value stays: an object
+//!   tessellated finer than the pixels, of whose triangles hardly one has clean evidence, still follows its
+//!   photos. Each triangle's ratio r_t (sampling variance v_t
 //!   = ρ²·n·s²/R² from that scatter, i.e. from the value paths and the photo noise) becomes
 //!   m + τ²/(τ² + v_t)·(r_t − m), with τ² the object's spread beyond noise by the method of moments with weights
 //!   1/v_t, τ² = max(0, (Σ (r_t − m)²/v_t − k)/Σ 1/v_t) over its k triangles with clean evidence (empirical

@@ -20,6 +20,10 @@ pub struct TriSample {
     pub child: u8,
     /// The centre and the four corners of the pixel all hit `tri`: the pixel's value depends on `tri` alone.
     pub interior: bool,
+    /// The centre and the four corners all hit triangles of `tri`'s object (its emitter slot, which is the
+    /// object in the per-triangle scene, [`super::TriangleState::scene`]): the pixel sees that object alone, so
+    /// its value scales with that object's base colour where the object is uniform. Every interior pixel is one.
+    pub on_object: bool,
     /// Barycentric coordinates (u, v) of the centre's hit: the point is (1 − u − v)·p0 + u·p1 + v·p2.
     pub bary: Vec2,
 }
@@ -145,15 +149,18 @@ fn view_pixels(
         };
         let Some(h) = hit_at(0.0, 0.0) else { continue };
         // The pixel's footprint is the box ±½ around its centre (the tracer's box filter).
-        let interior = [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)]
-            .iter()
-            .all(|&(dx, dy)| hit_at(dx, dy).is_some_and(|c| c.prim_id == h.prim_id));
+        let corners =
+            [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)].map(|(dx, dy)| hit_at(dx, dy).map(|c| c.prim_id));
+        let interior = corners.iter().all(|&c| c == Some(h.prim_id));
+        let object = scene.emitter_of(h.prim_id);
+        let on_object = corners.iter().all(|&c| c.is_some_and(|p| scene.emitter_of(p) == object));
         out.push(TriSample {
             pixel: PixelRef { view: view as u32, x, y },
             target: t,
             tri: h.prim_id,
             child: child_of(h.u, h.v),
             interior,
+            on_object,
             bary: Vec2::new(h.u, h.v),
         });
     }

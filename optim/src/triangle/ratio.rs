@@ -156,7 +156,8 @@ const CHI2_3_999: f64 = 16.266;
 const MIN_VARIANCE: f64 = 1e-12;
 
 /// One fit step's evidence per triangle, over the pixels its update uses: the current base colour, the sums of
-/// photo and render values, of squared differences (photo − render)², and the pixel count.
+/// photo and render values, of squared differences (photo − render)², and the pixel count; and per object,
+/// the sums over the pixels that see it alone ([`Pooled`]).
 #[derive(Debug, Clone, Copy)]
 pub struct Evidence<'a> {
     pub old: &'a [Vec3],
@@ -166,7 +167,43 @@ pub struct Evidence<'a> {
     pub count: &'a [f64],
     /// Interior pixels (footprint wholly on the triangle) per triangle.
     pub interior: &'a [usize],
+    /// Per object.
+    pub pooled: &'a [Pooled],
 }
+
+/// One fit step's sums per object over its pixels that see it alone ([`super::pixels::TriSample::on_object`])
+/// and lie on triangles whose base colour is positive in every channel: the object-level evidence of
+/// [`shrink_to_object`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Pooled {
+    /// Σ photo.
+    pub t: DVec3,
+    /// Σ render/ρ_t: the render per unit of the base colour of the triangle the pixel's centre sees.
+    pub r_per_albedo: DVec3,
+    /// Σ (photo − render).
+    pub d: DVec3,
+    /// Σ (photo − render)².
+    pub d_sq: DVec3,
+    /// Pixels.
+    pub n: f64,
+}
+
+impl Pooled {
+    /// Adds one pixel of photo `target` and render `render` on a triangle of base colour `rho` (positive).
+    pub fn add(&mut self, target: DVec3, render: DVec3, rho: DVec3) {
+        let d = target - render;
+        self.t += target;
+        self.r_per_albedo += render / rho;
+        self.d += d;
+        self.d_sq += d * d;
+        self.n += 1.0;
+    }
+}
+
+/// Pixels an object's pooled update needs in [`shrink_to_object`] before it may move the object's value: the
+/// χ² test divides by the variance of these pixels' differences, whose relative standard error is √(2/(n − 1)),
+/// ±25 % at 32 pixels; with fewer the estimate of the noise is itself too noisy to judge a change by.
+const MIN_POOLED: f64 = 32.0;
 
 impl Evidence<'_> {
     /// Sampling variance (per channel) of triangle `t`'s ratio estimate `ρ·T/R`, or `None` with fewer than 2
@@ -187,9 +224,13 @@ impl Evidence<'_> {
 }
 
 /// Empirical-Bayes (James–Stein) shrinkage of the per-triangle estimates `ratio` towards their object's pooled
-/// value: per object and channel, the prior mean m = ΣT / Σ(R/ρ) is the object-level ratio update over all its
-/// observed triangles' pixels (one ratio of two large sums: the per-triangle ratio T_t/R_t has the noise of a
-/// few dozen pixels' renders in its denominator, which biases it upwards — E\[1/R\] > 1/E\[R\] — far more), the
+/// value: per object and channel, the prior mean m = ΣT / Σ(R/ρ) is the object-level ratio update over all the
+/// pixels that see the object alone ([`Pooled`]; one ratio of two large sums: the per-triangle ratio T_t/R_t has
+/// the noise of a few dozen pixels' renders in its denominator, which biases it upwards — E\[1/R\] > 1/E\[R\] —
+/// far more). Those pixels need not be interior to one triangle: a finely tessellated object (a sphere of
+/// 5 120 triangles in a few hundred pixels of a 430×344 photo) has hardly a triangle with clean evidence, and
+/// pooled over those alone it kept the object stage's value through every step and every light re-solve
+/// (docs/optim/design-measurements.md, "Objects tessellated finer than the pixels"). The
 /// estimates r_t have sampling variances v_t ([`Evidence::ratio_variance`]), and the spread of the true values
 /// τ² is what the estimates scatter beyond their noise (the method of moments with weights 1/v_t, as
 /// DerSimonian–Laird's, so that a triangle with a huge variance does not hide the others' spread). Each
@@ -198,7 +239,8 @@ impl Evidence<'_> {
 /// in a single pixel (no measurable noise) or in fewer than `MIN_INTERIOR` interior pixels (its estimate rests
 /// on pixels shared with neighbours and absorbs their misfit) has no clean evidence of a difference: it takes
 /// m. Unobserved triangles (left to the smoothness solve) and those of emitting objects are unchanged. Only
-/// triangles with clean evidence enter m and τ²; with fewer than 2 of them an object keeps its current value.
+/// triangles with clean evidence enter τ²; an object with fewer than [`MIN_POOLED`] pooled pixels keeps its
+/// current value.
 #[must_use]
 pub fn shrink_to_object(
     ratio: &[Vec3],
@@ -208,50 +250,35 @@ pub fn shrink_to_object(
     objects: usize,
 ) -> Vec<Vec3> {
     let var: Vec<Option<DVec3>> = (0..ratio.len()).map(|t| if free[t] { ev.ratio_variance(t) } else { None }).collect();
-    // Per object and channel: Σ T and Σ R/ρ (the render per unit albedo) over its observed triangles.
-    let mut pooled = vec![(DVec3::ZERO, DVec3::ZERO, 0usize); objects];
-    for (t, v) in var.iter().enumerate() {
-        // Only triangles with clean evidence (interior pixels, see below) inform the object's value.
-        if v.is_none() || ev.interior[t] < MIN_INTERIOR || ev.old[t].min_element() <= 0.0 {
-            continue;
-        }
-        let o = &mut pooled[face_object[t] as usize];
-        o.0 += ev.t_sum[t];
-        o.1 += ev.r_sum[t] / ev.old[t].as_dvec3();
-        o.2 += 1;
-    }
-    // The object's current value (pixel-weighted mean of its triangles' values) and the variance of the pooled
-    // ratio, Σ n_t s_t² · (ρ_t/R_t)²-weighted like the per-triangle one: Var(ΣT − ΣR)/(Σ R/ρ)².
-    let mut current = vec![(DVec3::ZERO, 0.0f64, DVec3::ZERO); objects];
-    for (t, v) in var.iter().enumerate() {
+    // The object's current value: the pixel-weighted mean of its triangles' values.
+    let mut current = vec![(DVec3::ZERO, 0.0f64); objects];
+    for t in 0..ratio.len() {
         if !free[t] || ev.count[t] <= 0.0 {
             continue;
         }
         let o = &mut current[face_object[t] as usize];
         o.0 += ev.old[t].as_dvec3() * ev.count[t];
         o.1 += ev.count[t];
-        let Some(v) = v.filter(|_| ev.interior[t] >= MIN_INTERIOR) else { continue };
-        // v_t = ρ²·n·s²/R², so n·s² = v_t·(R/ρ)².
-        let per_albedo = ev.r_sum[t] / ev.old[t].as_dvec3().max(DVec3::splat(f64::MIN_POSITIVE));
-        o.2 += v * per_albedo * per_albedo;
     }
-    let mean: Vec<Option<DVec3>> = pooled
+    let mean: Vec<Option<DVec3>> = current
         .iter()
-        .zip(&current)
-        .map(|((t, r, k), (cur, n, var_diff))| {
-            if *n <= 0.0 {
+        .zip(ev.pooled.iter().chain(std::iter::repeat(&Pooled::default())))
+        .map(|(&(cur, n), p)| {
+            if n <= 0.0 {
                 return None;
             }
-            let cur = *cur / *n;
-            // Fewer than 2 triangles with clean evidence: the object keeps its value.
-            if *k < 2 || r.min_element() <= 0.0 {
+            let cur = cur / n;
+            if p.n < MIN_POOLED || p.r_per_albedo.min_element() <= 0.0 {
                 return Some(cur);
             }
-            let m = (*t / *r).clamp(DVec3::ZERO, DVec3::ONE);
+            let m = (p.t / p.r_per_albedo).clamp(DVec3::ZERO, DVec3::ONE);
             // The object-level update is itself evidence: it moves the object's value only when significant,
             // z² = Σ_c (m − current)²/Var(m) above the 99.9 % quantile of χ²(3), 16.27 (a barely seen object,
             // e.g. a ceiling in 84 pixels mostly shared with walls, otherwise drifts on noise over the steps).
-            let var_m = *var_diff / (*r * *r);
+            // Var(m) = Var(ΣT − ΣR)/(Σ R/ρ)², with Var(ΣT − ΣR) = n·s² from the pixels' scatter about their mean
+            // difference (on a textured object the texture adds to s², which only makes the test stricter).
+            let s2 = ((p.d_sq - p.d * p.d / p.n) / (p.n - 1.0)).max(DVec3::ZERO);
+            let var_m = s2 * p.n / (p.r_per_albedo * p.r_per_albedo);
             let z2 = ((m - cur) * (m - cur) / var_m.max(DVec3::splat(1e-300))).element_sum();
             Some(if z2 > CHI2_3_999 { m } else { cur })
         })
@@ -378,11 +405,16 @@ pub fn fit_pass(
         let mut r_sum = vec![DVec3::ZERO; n];
         let mut d_sq = vec![DVec3::ZERO; n];
         let mut count = vec![0f64; n];
+        let old: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
+        let mut pooled = vec![Pooled::default(); objects];
         let mut l = 0.0;
         for (s, v) in samples.iter().zip(&values) {
             l += f64::from((*v - s.target).abs().element_sum()) / 3.0;
+            let t = s.tri as usize;
+            if s.on_object && free[t] && old[t].min_element() > 0.0 {
+                pooled[state.face_object[t] as usize].add(s.target.as_dvec3(), v.as_dvec3(), old[t].as_dvec3());
+            }
             if used(s) {
-                let t = s.tri as usize;
                 let d = (s.target - *v).as_dvec3();
                 t_sum[t] += s.target.as_dvec3();
                 r_sum[t] += v.as_dvec3();
@@ -391,7 +423,6 @@ pub fn fit_pass(
             }
         }
         loss.push(l / samples.len().max(1) as f64);
-        let old: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
         let mut rho = old.clone();
         if cfg.fit_steps > 0 {
             let ratio: Vec<Vec3> = (0..n)
@@ -409,6 +440,7 @@ pub fn fit_pass(
                     d_sq: &d_sq,
                     count: &count,
                     interior: &interior,
+                    pooled: &pooled,
                 };
                 shrink_to_object(&ratio, &evidence, &state.face_object, &free, state.emission.len())
             } else {
@@ -509,17 +541,43 @@ mod tests {
         (t_sum, r_sum, d_sq, vec![n; old.len()], vec![100; old.len()])
     }
 
+    /// The per-object sums of [`Pooled`] over the same pixels as the per-triangle sums (every pixel sees its
+    /// object alone).
+    fn pool(old: &[Vec3], sums: &Sums, face_object: &[u32], objects: usize) -> Vec<Pooled> {
+        let (t_sum, r_sum, d_sq, count, _) = sums;
+        let mut out = vec![Pooled::default(); objects];
+        for t in 0..old.len() {
+            let p = &mut out[face_object[t] as usize];
+            p.t += t_sum[t];
+            p.r_per_albedo += r_sum[t] / old[t].as_dvec3();
+            p.d += t_sum[t] - r_sum[t];
+            p.d_sq += d_sq[t];
+            p.n += count[t];
+        }
+        out
+    }
+
     #[test]
     fn a_uniform_object_keeps_its_value_and_a_textured_one_its_triangles_values() {
         // Object 0: uniform 0.5, triangle ratios scattered by exactly the noise (±0.01, v = 1e-4).
         // Object 1: a checker 0.2 / 0.8 (spread far beyond the same noise).
         let old = vec![Vec3::splat(0.5); 8];
         let ratio: Vec<Vec3> = [0.51, 0.49, 0.51, 0.49, 0.2, 0.8, 0.2, 0.8].iter().map(|&x| Vec3::splat(x)).collect();
-        let (t_sum, r_sum, d_sq, count, interior) = evidence(&old, &ratio, 1e-4);
-        let ev = Evidence { old: &old, t_sum: &t_sum, r_sum: &r_sum, d_sq: &d_sq, count: &count, interior: &interior };
+        let sums = evidence(&old, &ratio, 1e-4);
+        let face_object = [0, 0, 0, 0, 1, 1, 1, 1];
+        let pooled = pool(&old, &sums, &face_object, 2);
+        let (t_sum, r_sum, d_sq, count, interior) = sums;
+        let ev = Evidence {
+            old: &old,
+            t_sum: &t_sum,
+            r_sum: &r_sum,
+            d_sq: &d_sq,
+            count: &count,
+            interior: &interior,
+            pooled: &pooled,
+        };
         let v = ev.ratio_variance(0).unwrap();
         assert!((v.x - 1e-4).abs() < 1e-9, "{v}");
-        let face_object = [0, 0, 0, 0, 1, 1, 1, 1];
         let out = shrink_to_object(&ratio, &ev, &face_object, &[true; 8], 2);
         for t in 0..4 {
             // Object-level update 0.5 is not significantly different from 0.5: every triangle keeps 0.5.
@@ -541,8 +599,18 @@ mod tests {
         let old = vec![Vec3::splat(0.5); truth.len()];
         let mut v = vec![1e-4; 8];
         v.extend([100.0, 100.0]);
-        let (t_sum, r_sum, d_sq, count, interior) = evidence_each(&old, &truth, &v);
-        let ev = Evidence { old: &old, t_sum: &t_sum, r_sum: &r_sum, d_sq: &d_sq, count: &count, interior: &interior };
+        let sums = evidence_each(&old, &truth, &v);
+        let pooled = pool(&old, &sums, &[0; 10], 1);
+        let (t_sum, r_sum, d_sq, count, interior) = sums;
+        let ev = Evidence {
+            old: &old,
+            t_sum: &t_sum,
+            r_sum: &r_sum,
+            d_sq: &d_sq,
+            count: &count,
+            interior: &interior,
+            pooled: &pooled,
+        };
         let mut ratio = truth.clone();
         // The slivers' ratios are far off, as unmeasured ones are.
         ratio[8] = Vec3::splat(0.0);
@@ -555,5 +623,46 @@ mod tests {
         for t in 8..10 {
             assert!((out[t].x - 0.5).abs() < 0.01, "triangle {t}: {out:?}");
         }
+    }
+
+    #[test]
+    fn an_object_tessellated_finer_than_its_pixels_moves_to_its_pooled_value() {
+        // 200 triangles of one uniform object (truth 0.3, current 0.5), each seen in 3 pixels none of which is
+        // interior to it, but every one of which sees the object alone: no triangle has clean evidence, the
+        // pooled update over the 600 pixels does. Render = photo·ρ_old/ρ_true with a ±2 % scatter.
+        let tris = 200;
+        let (old, truth) = (vec![Vec3::splat(0.5); tris], vec![Vec3::splat(0.3); tris]);
+        let (mut t_sum, mut r_sum, mut d_sq) =
+            (vec![DVec3::ZERO; tris], vec![DVec3::ZERO; tris], vec![DVec3::ZERO; tris]);
+        let mut pooled = vec![Pooled::default()];
+        for t in 0..tris {
+            for j in 0..3 {
+                let photo = DVec3::splat(0.3);
+                let render = photo * (0.5 / 0.3) * (1.0 + 0.02 * (((t * 3 + j) % 5) as f64 - 2.0) / 2.0);
+                t_sum[t] += photo;
+                r_sum[t] += render;
+                d_sq[t] += (photo - render) * (photo - render);
+                pooled[0].add(photo, render, old[t].as_dvec3());
+            }
+        }
+        let (count, interior) = (vec![3.0; tris], vec![0usize; tris]);
+        let ev = Evidence {
+            old: &old,
+            t_sum: &t_sum,
+            r_sum: &r_sum,
+            d_sq: &d_sq,
+            count: &count,
+            interior: &interior,
+            pooled: &pooled,
+        };
+        let ratio: Vec<Vec3> = (0..tris).map(|t| (old[t].as_dvec3() * t_sum[t] / r_sum[t]).as_vec3()).collect();
+        let out = shrink_to_object(&ratio, &ev, &vec![0; tris], &vec![true; tris], 1);
+        for (t, o) in out.iter().enumerate() {
+            assert!((o.x - truth[t].x).abs() < 0.005, "triangle {t}: {o}");
+        }
+        // Fewer than MIN_POOLED pooled pixels: the object keeps its value.
+        let few = [Pooled { n: MIN_POOLED - 1.0, ..pooled[0] }];
+        let out = shrink_to_object(&ratio, &Evidence { pooled: &few, ..ev }, &vec![0; tris], &vec![true; tris], 1);
+        assert!(out.iter().all(|o| (o.x - 0.5).abs() < 1e-6), "{:?}", &out[..3]);
     }
 }
