@@ -541,20 +541,26 @@ mod tests {
         (t_sum, r_sum, d_sq, vec![n; old.len()], vec![100; old.len()])
     }
 
-    /// The per-object sums of [`Pooled`] over the same pixels as the per-triangle sums (every pixel sees its
-    /// object alone).
-    fn pool(old: &[Vec3], sums: &Sums, face_object: &[u32], objects: usize) -> Vec<Pooled> {
-        let (t_sum, r_sum, d_sq, count, _) = sums;
-        let mut out = vec![Pooled::default(); objects];
+    /// Runs `f` on the [`Evidence`] of `sums`, with the per-object sums of [`Pooled`] taken over the same pixels
+    /// as the per-triangle sums (every pixel sees its object alone).
+    fn with_evidence<R>(
+        old: &[Vec3],
+        sums: &Sums,
+        face_object: &[u32],
+        objects: usize,
+        f: impl FnOnce(&Evidence<'_>) -> R,
+    ) -> R {
+        let (t_sum, r_sum, d_sq, count, interior) = sums;
+        let mut pooled = vec![Pooled::default(); objects];
         for t in 0..old.len() {
-            let p = &mut out[face_object[t] as usize];
+            let p = &mut pooled[face_object[t] as usize];
             p.t += t_sum[t];
             p.r_per_albedo += r_sum[t] / old[t].as_dvec3();
             p.d += t_sum[t] - r_sum[t];
             p.d_sq += d_sq[t];
             p.n += count[t];
         }
-        out
+        f(&Evidence { old, t_sum, r_sum, d_sq, count, interior, pooled: &pooled })
     }
 
     #[test]
@@ -563,22 +569,11 @@ mod tests {
         // Object 1: a checker 0.2 / 0.8 (spread far beyond the same noise).
         let old = vec![Vec3::splat(0.5); 8];
         let ratio: Vec<Vec3> = [0.51, 0.49, 0.51, 0.49, 0.2, 0.8, 0.2, 0.8].iter().map(|&x| Vec3::splat(x)).collect();
-        let sums = evidence(&old, &ratio, 1e-4);
         let face_object = [0, 0, 0, 0, 1, 1, 1, 1];
-        let pooled = pool(&old, &sums, &face_object, 2);
-        let (t_sum, r_sum, d_sq, count, interior) = sums;
-        let ev = Evidence {
-            old: &old,
-            t_sum: &t_sum,
-            r_sum: &r_sum,
-            d_sq: &d_sq,
-            count: &count,
-            interior: &interior,
-            pooled: &pooled,
-        };
-        let v = ev.ratio_variance(0).unwrap();
+        let (v, out) = with_evidence(&old, &evidence(&old, &ratio, 1e-4), &face_object, 2, |ev| {
+            (ev.ratio_variance(0).unwrap(), shrink_to_object(&ratio, ev, &face_object, &[true; 8], 2))
+        });
         assert!((v.x - 1e-4).abs() < 1e-9, "{v}");
-        let out = shrink_to_object(&ratio, &ev, &face_object, &[true; 8], 2);
         for t in 0..4 {
             // Object-level update 0.5 is not significantly different from 0.5: every triangle keeps 0.5.
             assert!((out[t].x - 0.5).abs() < 1e-6, "{out:?}");
@@ -599,23 +594,13 @@ mod tests {
         let old = vec![Vec3::splat(0.5); truth.len()];
         let mut v = vec![1e-4; 8];
         v.extend([100.0, 100.0]);
-        let sums = evidence_each(&old, &truth, &v);
-        let pooled = pool(&old, &sums, &[0; 10], 1);
-        let (t_sum, r_sum, d_sq, count, interior) = sums;
-        let ev = Evidence {
-            old: &old,
-            t_sum: &t_sum,
-            r_sum: &r_sum,
-            d_sq: &d_sq,
-            count: &count,
-            interior: &interior,
-            pooled: &pooled,
-        };
         let mut ratio = truth.clone();
         // The slivers' ratios are far off, as unmeasured ones are.
         ratio[8] = Vec3::splat(0.0);
         ratio[9] = Vec3::splat(1.0);
-        let out = shrink_to_object(&ratio, &ev, &[0; 10], &[true; 10], 1);
+        let out = with_evidence(&old, &evidence_each(&old, &truth, &v), &[0; 10], 1, |ev| {
+            shrink_to_object(&ratio, ev, &[0; 10], &[true; 10], 1)
+        });
         for t in 0..8 {
             assert!((out[t].x - truth[t].x).abs() < 1e-3, "triangle {t}: {out:?}");
         }
