@@ -149,7 +149,7 @@ fn switch_to_metals(
         let lobe = format!(
             "a metal lobe (roughness {:.3}, base colour {:.3?}; profile loss {probe:.4} against {current:.4} at the probes)",
             xt[idx(k, ROUGHNESS)],
-            [xt[idx(k, BASE_COLOR)], xt[idx(k, BASE_COLOR + 1)], xt[idx(k, BASE_COLOR + 2)]],
+            layout::base_color(xt, k),
         );
         if let Some(vd) = against_dielectric.get(k).and_then(Option::as_ref) {
             let (gain_d, t_d) = paired_t(&vd.d);
@@ -166,9 +166,7 @@ fn switch_to_metals(
             );
             if keeps_metal(v, Some(vd), mean_target) {
                 glossy[k] = true;
-                for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
-                    x[idx(k, p)] = xt[idx(k, p)];
-                }
+                layout::copy_material(x, xt, k);
                 why[k].push(format!("under the settled light, {lobe} kept: {against}"));
             } else {
                 why[k].push(format!(
@@ -258,16 +256,14 @@ fn recheck_metals(
              {:.3?}) it lowers the lobe test's L1 by {:+.2} % of the mean radiance on {} (t = {t:.1})",
             xd[idx(k, ROUGHNESS)],
             xd[idx(k, SPECULAR)],
-            [xd[idx(k, BASE_COLOR)], xd[idx(k, BASE_COLOR + 1)], xd[idx(k, BASE_COLOR + 2)]],
+            layout::base_color(&xd, k),
             100.0 * rel,
             v.on(),
         );
         if v.passes(mean_target) {
             why[k].push(format!("{metal} kept: {against}"));
         } else {
-            for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
-                x[idx(k, p)] = xd[idx(k, p)];
-            }
+            layout::copy_material(x, &xd, k);
             let by = if x[idx(k, SPECULAR)] == 0.0 {
                 glossy[k] = false;
                 x[idx(k, ROUGHNESS)] = layout::START_ROUGHNESS;

@@ -34,6 +34,13 @@ pub fn base_color(x: &[f64], k: usize) -> [f64; 3] {
     std::array::from_fn(|c| x[idx(k, BASE_COLOR + c)])
 }
 
+/// Copies object `k`'s material — base colour, roughness, metallic and specular, the entries `BASE_COLOR` to
+/// `SPECULAR`, which lie next to each other — from `src` into `dst` (its emission stays).
+pub fn copy_material(dst: &mut [f64], src: &[f64], k: usize) {
+    let material = idx(k, BASE_COLOR)..=idx(k, SPECULAR);
+    dst[material.clone()].copy_from_slice(&src[material]);
+}
+
 /// Every object's roughness at the start, which a diffuse object keeps (metallic = specular = 0 is exactly
 /// Lambert, whatever the roughness): the middle of its range.
 pub const START_ROUGHNESS: f64 = 0.5;

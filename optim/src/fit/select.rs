@@ -637,9 +637,7 @@ pub fn choose_models(
             let on = v.on();
             if v.passes(mean_target) {
                 glossy[k] = true;
-                for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
-                    x[idx(k, p)] = xt[idx(k, p)];
-                }
+                layout::copy_material(&mut x, &xt, k);
                 why[k].push(format!(
                     "specular lobe (roughness {:.3}, specular {:.3}, metallic {:.3}) kept: it lowers the {test_name} L1 by {:.1} % of the mean radiance on {on} (t = {t:.1})",
                     xt[idx(k, ROUGHNESS)],
@@ -1015,9 +1013,7 @@ pub fn choose_models(
             let adopt = t_lobe > T_KEEP && rel_lobe > MIN_GAIN;
             if adopt {
                 glossy[k] = true;
-                for p in [BASE_COLOR, BASE_COLOR + 1, BASE_COLOR + 2, ROUGHNESS, METALLIC, SPECULAR] {
-                    x[idx(k, p)] = x_alt[idx(k, p)];
-                }
+                layout::copy_material(&mut x, &x_alt, k);
                 // The rest of the scene was fitted around the emission (a metal box's emission had the lamp
                 // 11 % bright and the walls 5 % dark): emission and base colours are re-fitted below.
                 material_refit = true;

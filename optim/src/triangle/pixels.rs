@@ -148,12 +148,18 @@ fn view_pixels(
             scene.embree().intersect(o, d, 0.0, f32::INFINITY)
         };
         let Some(h) = hit_at(0.0, 0.0) else { continue };
-        // The pixel's footprint is the box ±½ around its centre (the tracer's box filter).
-        let corners =
-            [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)].map(|(dx, dy)| hit_at(dx, dy).map(|c| c.prim_id));
-        let interior = corners.iter().all(|&c| c == Some(h.prim_id));
+        // The pixel's footprint is the box ±½ around its centre (the tracer's box filter). A corner off the
+        // object settles both flags (an interior pixel is on the object), so the rest are not traced.
         let object = scene.emitter_of(h.prim_id);
-        let on_object = corners.iter().all(|&c| c.is_some_and(|p| scene.emitter_of(p) == object));
+        let (mut interior, mut on_object) = (true, true);
+        for (dx, dy) in [(-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)] {
+            let corner = hit_at(dx, dy).map(|c| c.prim_id);
+            interior &= corner == Some(h.prim_id);
+            on_object &= corner.is_some_and(|p| scene.emitter_of(p) == object);
+            if !on_object {
+                break;
+            }
+        }
         out.push(TriSample {
             pixel: PixelRef { view: view as u32, x, y },
             target: t,

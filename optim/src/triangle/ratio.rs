@@ -260,9 +260,10 @@ pub fn shrink_to_object(
         o.0 += ev.old[t].as_dvec3() * ev.count[t];
         o.1 += ev.count[t];
     }
+    debug_assert_eq!(ev.pooled.len(), objects, "one pooled sum per object");
     let mean: Vec<Option<DVec3>> = current
         .iter()
-        .zip(ev.pooled.iter().chain(std::iter::repeat(&Pooled::default())))
+        .zip(ev.pooled)
         .map(|(&(cur, n), p)| {
             if n <= 0.0 {
                 return None;
