@@ -238,6 +238,15 @@ fn validate(c: &Config) -> Result<(), Invalid> {
     )?;
     non_negative("triangle.split_contrast", g.split_contrast)?;
     at_least_one("triangle.max_triangles", g.max_triangles)?;
+    // The light-change test needs 2 averaged steps after the burn-in; each step's key must stay inside the
+    // 2^17 the key layout leaves the light solves of a round's two cycles.
+    rule(
+        g.light_steps == 0 || (4..=10_000).contains(&g.light_steps),
+        "triangle.light_steps",
+        "0 or in [4, 10000]",
+        g.light_steps,
+    )?;
+    non_negative("triangle.light_precision", g.light_precision)?;
 
     let e = &c.export;
     at_least_one("export.report_spp", e.report_spp)?;
@@ -307,9 +316,19 @@ mod tests {
         std::fs::create_dir(dir.path().join("s")).unwrap();
         let cfg = dir.path().join("run.toml");
         std::fs::write(&cfg, "[scan]\npath = \"s\"\n").unwrap();
-        for (set, key) in [("images.downscale=0", "images.downscale"), ("output.path=.", "output.path")] {
+        for (set, key) in [
+            ("images.downscale=0", "images.downscale"),
+            ("output.path=.", "output.path"),
+            // Too few light steps for the light-change test's two averaged steps after the burn-in.
+            ("triangle.light_steps=3", "triangle.light_steps"),
+            ("triangle.light_precision=-0.01", "triangle.light_precision"),
+        ] {
             let e = Plan::load(&cfg, &[set.to_owned()]).unwrap_err();
             assert!(e.to_string().contains(&format!("`{key}`")), "{e}");
+        }
+        // No light re-solve, or the fewest steps that allow its test: valid.
+        for set in ["triangle.light_steps=0", "triangle.light_steps=4", "triangle.light_precision=0"] {
+            Plan::load(&cfg, &[set.to_owned()]).unwrap_or_else(|e| panic!("{set}: {e}"));
         }
     }
 

@@ -88,6 +88,8 @@ impl From<&TriangleConfig> for TriangleSettings {
             split_contrast: c.split_contrast,
             min_pixels: c.min_pixels,
             max_triangles: c.max_triangles,
+            light_steps: c.light_steps,
+            light_precision: c.light_precision,
             seed: c.seed,
         }
     }
