@@ -240,10 +240,11 @@ fn validate(c: &Config) -> Result<(), Invalid> {
     at_least_one("triangle.max_triangles", g.max_triangles)?;
     // The light-change test needs 2 averaged steps after the burn-in; each step's key must stay inside the
     // 2^17 the key layout leaves the light solves of a round's two cycles.
+    let fewest = optim::triangle::light::LIGHT_BURN_IN + 2;
     rule(
-        g.light_steps == 0 || (4..=10_000).contains(&g.light_steps),
+        g.light_steps == 0 || (fewest..=10_000).contains(&g.light_steps),
         "triangle.light_steps",
-        "0 or in [4, 10000]",
+        &format!("0 or in [{fewest}, 10000]"),
         g.light_steps,
     )?;
     non_negative("triangle.light_precision", g.light_precision)?;

@@ -259,12 +259,14 @@ fn relative_scatter(steps: &[Vec<DVec3>], k: usize) -> Option<(f64, f64, DVec3)>
 /// [`relative_scatter`]): what the cycle's averaged light is known to. Infinite with fewer than 2 steps.
 #[must_use]
 pub fn light_relative_se(steps: &[Vec<DVec3>]) -> f64 {
-    let Some(first) = steps.first() else { return f64::INFINITY };
+    if steps.len() < 2 {
+        return f64::INFINITY;
+    }
     let n = steps.len() as f64;
-    (0..first.len())
+    (0..steps[0].len())
         .filter_map(|k| relative_scatter(steps, k))
         .map(|(var, _, _)| (var / n).sqrt())
-        .fold(if steps.len() < 2 { f64::INFINITY } else { 0.0 }, f64::max)
+        .fold(0.0, f64::max)
 }
 
 /// The p-value of "the light did not change": `steps[i][k]` is emitter k's emission after the i-th averaged
