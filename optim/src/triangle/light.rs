@@ -269,6 +269,65 @@ pub fn light_relative_se(steps: &[Vec<DVec3>]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Each emitter's light after a later cycle of [`refine_light`]: `(prev, prev_var)` is its light before the
+/// cycle and that light's relative variance (per channel, the square of its relative standard error), `steps`
+/// the cycle's averaged steps. Where the cycle's mean agrees with the previous light within their joint Monte
+/// Carlo scatter (per channel, |Δ|/√(v_prev + v_cycle) ≤ [`POOL_Z`]), the two are two estimates of one light
+/// and their inverse-variance weighted mean is known better than either (relative variance
+/// 1/(1/v_prev + 1/v_cycle)); where it does not, the light moved with the textures the cycle started from, and
+/// the cycle's mean replaces it. A lamp that no photo sees scatters by a quarter of its value per step on the
+/// house, so one cycle knows it only to 6–12 %, and a second cycle that replaced the first's estimate with a
+/// fresh one as noisy lost what the first had found (docs/optim/design-measurements.md, "Light cycles pooled
+/// where they agree"). An emitter whose steps give no scatter to go on (fewer than 2 steps, or every channel
+/// at 0) takes the cycle's mean, its variance unknown (infinite); without steps everything stays as `prev`.
+#[must_use]
+pub fn pool_cycles(prev: &[DVec3], prev_var: &[DVec3], steps: &[Vec<DVec3>]) -> Vec<(DVec3, DVec3)> {
+    if steps.is_empty() {
+        return prev.iter().copied().zip(prev_var.iter().copied()).collect();
+    }
+    let n = steps.len() as f64;
+    (0..prev.len())
+        .map(|k| {
+            let Some((var, _, mean)) = relative_scatter(steps, k) else {
+                return (steps.iter().map(|s| s[k]).sum::<DVec3>() / n, DVec3::INFINITY);
+            };
+            let v_cycle = var / n;
+            let mut light = mean;
+            let mut rel_var = DVec3::splat(v_cycle);
+            for c in 0..3 {
+                let (a, va) = (prev[k][c], prev_var[k][c]);
+                // A channel at 0 or a previous light of unknown variance (NaN included) is not pooled.
+                if mean[c] <= 0.0 || a <= 0.0 || !(va.is_finite() && va > 0.0) {
+                    continue;
+                }
+                // Variances relative to each estimate's own value, put on one absolute scale.
+                let (sa, sb) = (va * a * a, v_cycle * mean[c] * mean[c]);
+                if (mean[c] - a).abs() > POOL_Z * (sa + sb).sqrt() {
+                    continue;
+                }
+                let w = sb / (sa + sb);
+                light[c] = w * a + (1.0 - w) * mean[c];
+                rel_var[c] = sa * sb / (sa + sb) / (light[c] * light[c]);
+            }
+            (light, rel_var)
+        })
+        .collect()
+}
+
+/// Largest disagreement, in joint standard errors, at which [`pool_cycles`] takes two cycles' lights for
+/// estimates of one light: two-sided 1 %, the light-change gate's level ([`LIGHT_SIGNIFICANCE`]), so that a
+/// light is held to the previous cycle's only where nothing shows that it moved.
+pub const POOL_Z: f64 = 2.576;
+
+/// Each emitter's relative variance of its mean over a cycle's averaged steps (see [`relative_scatter`]), per
+/// channel; infinite (unknown) where it has no scatter to go on.
+fn cycle_rel_var(steps: &[Vec<DVec3>], emitters: usize) -> Vec<DVec3> {
+    let n = steps.len() as f64;
+    (0..emitters)
+        .map(|k| relative_scatter(steps, k).map_or(DVec3::INFINITY, |(var, _, _)| DVec3::splat(var / n)))
+        .collect()
+}
+
 /// The p-value of "the light did not change": `steps[i][k]` is emitter k's emission after the i-th averaged
 /// joint step of a cycle, `start[k]` its emission before the cycle. Per emitter and channel the Wald statistic
 /// t = (x̄ − x₀)/(s/√n) of the mean x̄ of the n steps against the start, with the steps' scatter s as the Monte
@@ -311,7 +370,8 @@ pub fn light_change_p(start: &[DVec3], steps: &[Vec<DVec3>]) -> f64 {
 /// the new light before the next cycle. A cycle takes [`LIGHT_MIN_STEPS`] steps, and more, up to
 /// `triangle.light_steps`, while some emitter's averaged emission is known to worse than
 /// `triangle.light_precision` ([`light_relative_se`]): a lamp that no photo sees scatters by a quarter of its
-/// value per step on the house, a seen one by under 1 %. Gated: after the first cycle's steps the averaged
+/// value per step on the house, a seen one by under 1 %. A later cycle's averaged light is pooled with the
+/// light it started from where the two agree ([`pool_cycles`]). Gated: after the first cycle's steps the averaged
 /// light is tested against the light it started from ([`light_change_p`] at [`LIGHT_SIGNIFICANCE`]); without a
 /// significant change the cycle is undone (emission and materials as the round's fit left them) and the rest
 /// skipped: `Ok(None)`. After each cycle's ratio pass the re-solved state must fit the photos no worse than the
@@ -342,8 +402,11 @@ pub fn refine_light(
     let mut fitted: Option<Fitted> = None;
     // Joint steps taken per cycle.
     let mut taken: Vec<u32> = Vec::new();
+    // Per emitter, the relative variance of the light the cycles have settled on so far (per channel).
+    let mut rel_var: Vec<DVec3> = Vec::new();
     for cycle in 0..LIGHT_CYCLES {
         let base: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
+        let cycle_from = state.emission.clone();
         let mut cumulative = vec![DVec3::ONE; objects];
         let (mut sum_s, mut n) = (vec![DVec3::ZERO; objects], 0.0);
         // Per averaged step, the emitters' emission (in `emitters` order).
@@ -375,7 +438,7 @@ pub fn refine_light(
         taken.push(steps);
         tracing::debug!(round, cycle, steps, se = light_relative_se(&averaged), "triangle light cycle steps");
         // The averaged light, per emitter.
-        let mean_e: Vec<DVec3> =
+        let mut mean_e: Vec<DVec3> =
             (0..emitters.len()).map(|j| averaged.iter().map(|a| a[j]).sum::<DVec3>() / n).collect();
         if cycle == 0 {
             // The gate: the object stage's light stays unless the first cycle moved it significantly beyond
@@ -404,6 +467,14 @@ pub fn refine_light(
                 "[triangle] round {round}: light change significant (p = {p:.2e}), proposed {proposed:?} after {steps} \
                  joint steps"
             ));
+        }
+        if cycle == 0 {
+            rel_var = cycle_rel_var(&averaged, emitters.len());
+        } else {
+            let cycle_start: Vec<DVec3> = emitters.iter().map(|&o| cycle_from[o].as_dvec3()).collect();
+            let pooled = pool_cycles(&cycle_start, &rel_var, &averaged);
+            tracing::debug!(round, cycle, cycle_mean = ?mean_e, ?pooled, "triangle light cycles pooled");
+            (mean_e, rel_var) = pooled.into_iter().unzip();
         }
         for (&o, e) in emitters.iter().zip(&mean_e) {
             state.emission[o] = e.as_vec3();
@@ -667,6 +738,61 @@ mod tests {
         // Fewer than 2 steps: nothing is known yet.
         assert_eq!(light_relative_se(&steps[..1]), f64::INFINITY);
         assert_eq!(light_relative_se(&[]), f64::INFINITY);
+    }
+
+    #[test]
+    fn cycles_that_agree_are_pooled_and_a_light_that_moved_takes_the_new_cycle() {
+        // An unseen lamp: 16 averaged steps per cycle, each scattering by 25 % of the truth (the house's unseen
+        // lamps, 24–49 %), so each cycle's mean is known to about 6 %. Over 2000 seeded trials of two cycles
+        // about the same light, the pooled light's mean squared relative error must be near half the second
+        // cycle's alone (inverse-variance weights of two equal variances; the pretest costs a little), and a
+        // light that moved by 40 % (about 5 joint standard errors) must take the second cycle's mean.
+        let truth = DVec3::new(20.0, 15.0, 9.0);
+        let (n, trials) = (16, 2000);
+        let z = normals(0xc0ff, trials * 2 * n * 3);
+        let cycle = |i: usize, c: usize, light: DVec3| -> Vec<Vec<DVec3>> {
+            (0..n)
+                .map(|j| {
+                    let k = 3 * ((2 * i + c) * n + j);
+                    vec![light * (DVec3::ONE + 0.25 * DVec3::new(z[k], z[k + 1], z[k + 2]))]
+                })
+                .collect()
+        };
+        let rel_err2 = |e: DVec3, t: DVec3| ((e - t) / t).length_squared();
+        let (mut pooled_err, mut second_err, mut moved_taken) = (0.0, 0.0, 0);
+        for i in 0..trials {
+            let first = cycle(i, 0, truth);
+            let prev = vec![first.iter().map(|s| s[0]).sum::<DVec3>() / n as f64];
+            let prev_var = cycle_rel_var(&first, 1);
+            let second = cycle(i, 1, truth);
+            let second_mean = second.iter().map(|s| s[0]).sum::<DVec3>() / n as f64;
+            let (light, var) = pool_cycles(&prev, &prev_var, &second)[0];
+            pooled_err += rel_err2(light, truth);
+            second_err += rel_err2(second_mean, truth);
+            // Where pooled, the light is known better than by either cycle alone (absolute variances).
+            let second_var = cycle_rel_var(&second, 1)[0];
+            for c in (0..3).filter(|&c| light[c] != second_mean[c]) {
+                let v = var[c] * light[c] * light[c];
+                assert!(v < prev_var[0][c] * prev[0][c] * prev[0][c], "{c}: {var}");
+                assert!(v < second_var[c] * second_mean[c] * second_mean[c], "{c}: {var}");
+            }
+            let moved = cycle(i, 1, truth * 1.4);
+            let moved_mean = moved.iter().map(|s| s[0]).sum::<DVec3>() / n as f64;
+            let (light, _) = pool_cycles(&prev, &prev_var, &moved)[0];
+            moved_taken += usize::from((0..3).filter(|&c| light[c] == moved_mean[c]).count() >= 2);
+        }
+        let ratio = pooled_err / second_err;
+        eprintln!("pooled / second cycle's mean squared error {ratio:.3}; moved light taken {moved_taken} of {trials}");
+        assert!(ratio < 0.65, "pooling gained too little: {ratio}");
+        assert!(moved_taken as f64 >= 0.9 * trials as f64, "a moved light taken in {moved_taken} of {trials}");
+        // A previous light whose variance is unknown (infinite), or a channel at 0, takes the cycle's mean.
+        let steps = cycle(0, 1, truth);
+        let mean = steps.iter().map(|s| s[0]).sum::<DVec3>() / n as f64;
+        assert_eq!(pool_cycles(&[truth], &[DVec3::INFINITY], &steps)[0].0, mean);
+        let (light, _) = pool_cycles(&[DVec3::new(20.0, 15.0, 0.0)], &[DVec3::splat(0.004)], &steps)[0];
+        assert_eq!(light.z, mean.z);
+        // No steps: everything as it was.
+        assert_eq!(pool_cycles(&[truth], &[DVec3::splat(0.01)], &[]), vec![(truth, DVec3::splat(0.01))]);
     }
 
     #[test]
