@@ -248,6 +248,10 @@ fn validate(c: &Config) -> Result<(), Invalid> {
         g.light_steps,
     )?;
     non_negative("triangle.light_precision", g.light_precision)?;
+    // The ratio steps of a round's passes (`fit_steps`, then `light_fit_steps` after each of the two light
+    // cycles) are numbered on in one key field below the 2^16 of the Adam iterations.
+    rule(g.fit_steps <= 10_000, "triangle.fit_steps", "at most 10000", g.fit_steps)?;
+    rule((1..=10_000).contains(&g.light_fit_steps), "triangle.light_fit_steps", "in [1, 10000]", g.light_fit_steps)?;
 
     let e = &c.export;
     at_least_one("export.report_spp", e.report_spp)?;
@@ -323,12 +327,20 @@ mod tests {
             // Too few light steps for the light-change test's two averaged steps after the burn-in.
             ("triangle.light_steps=3", "triangle.light_steps"),
             ("triangle.light_precision=-0.01", "triangle.light_precision"),
+            ("triangle.light_fit_steps=0", "triangle.light_fit_steps"),
+            ("triangle.fit_steps=10001", "triangle.fit_steps"),
         ] {
             let e = Plan::load(&cfg, &[set.to_owned()]).unwrap_err();
             assert!(e.to_string().contains(&format!("`{key}`")), "{e}");
         }
         // No light re-solve, or the fewest steps that allow its test: valid.
-        for set in ["triangle.light_steps=0", "triangle.light_steps=4", "triangle.light_precision=0"] {
+        for set in [
+            "triangle.light_steps=0",
+            "triangle.light_steps=4",
+            "triangle.light_precision=0",
+            "triangle.light_fit_steps=1",
+            "triangle.fit_steps=0",
+        ] {
             Plan::load(&cfg, &[set.to_owned()]).unwrap_or_else(|e| panic!("{set}: {e}"));
         }
     }

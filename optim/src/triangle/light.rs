@@ -26,8 +26,8 @@ pub const LIGHT_MIN_STEPS: u32 = 6;
 /// (measured: from 6.5 % off to within 1–2 %), the second settles; later ones scatter by their noise.
 pub const LIGHT_BURN_IN: u32 = 2;
 
-/// Cycles of [`refine_light`]: [`LIGHT_MIN_STEPS`] to `triangle.light_steps` joint steps, then `fit_steps` ratio
-/// steps.
+/// Cycles of [`refine_light`]: [`LIGHT_MIN_STEPS`] to `triangle.light_steps` joint steps, then
+/// `triangle.light_fit_steps` ratio steps.
 pub const LIGHT_CYCLES: u32 = 2;
 
 /// Family-wise level of [`light_change_p`]'s test in [`refine_light`]: the probability that the stage moves a
@@ -366,7 +366,7 @@ pub fn light_change_p(start: &[DVec3], steps: &[Vec<DVec3>]) -> f64 {
 /// emitting objects and the albedo scale of every other object (`solve_light`, per-triangle textures fixed in
 /// shape), whose iterates after the first [`LIGHT_BURN_IN`] are averaged (Polyak–Ruppert: once converged, each
 /// step scatters by the Monte Carlo noise of its Jacobian along the albedo/emission valley), then a pass of
-/// `fit_steps` ratio steps against the averaged light ([`fit_pass`] `cycle + 1`), which lets the texture follow
+/// `light_fit_steps` ratio steps against the averaged light ([`fit_pass`] `cycle + 1`), which lets the texture follow
 /// the new light before the next cycle. A cycle takes [`LIGHT_MIN_STEPS`] steps, and more, up to
 /// `triangle.light_steps`, while some emitter's averaged emission is known to worse than
 /// `triangle.light_precision` ([`light_relative_se`]): a lamp that no photo sees scatters by a quarter of its

@@ -31,8 +31,8 @@
 //!   those albedos returns the same light (measured: light 6.5 % → 5–9 % off per channel, PSNR 33.1 dB); so,
 //!   as the object stage's joint step does, the light moves together with every non-emitting object's
 //!   albedo *scale* (ρ_t → s_o·ρ_t, texture shape fixed): [`light::LIGHT_CYCLES`] (2) cycles of
-//!   Gauss–Newton steps on (e, s), averaged after the first [`light::LIGHT_BURN_IN`] (2), then `fit_steps`
-//!   ratio steps against the averaged light. A cycle takes [`light::LIGHT_MIN_STEPS`] (6) steps and goes on,
+//!   Gauss–Newton steps on (e, s), averaged after the first [`light::LIGHT_BURN_IN`] (2), then
+//!   `light_fit_steps` ratio steps against the averaged light. A cycle takes [`light::LIGHT_MIN_STEPS`] (6) steps and goes on,
 //!   up to `light_steps` (18), while some emitter's averaged emission has a relative standard error above
 //!   `light_precision` (1 %, [`light::light_relative_se`]): a seen lamp scatters by under 1 % per step and
 //!   stops at the minimum, a lamp no photo sees by a quarter of its value and takes the budget. The second
@@ -242,6 +242,8 @@ pub struct TriangleSettings {
     /// A light cycle stops before `light_steps` once every emitter's averaged emission has at most this
     /// relative standard error ([`light::light_relative_se`]).
     pub light_precision: f64,
+    /// Ratio steps of the pass after each light cycle ([`light::refine_light`]).
+    pub light_fit_steps: u32,
     /// Seed of the stage's renders.
     pub seed: u64,
 }

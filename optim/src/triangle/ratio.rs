@@ -351,8 +351,23 @@ pub fn fit_round(
     fit_pass(inputs, scene, samples, state, round, 0, progress)
 }
 
-/// Pass `pass` of a round's fit: `fit_steps` ratio steps under the current light, random numbers keyed by
-/// (seed, round, pass, step); pass 0 is [`fit_round`], later passes are [`super::light::refine_light`]'s.
+/// The key numbers of pass `pass`'s ratio steps: pass 0 takes `fit_steps` (at least 1), each later pass
+/// `light_fit_steps` (at least 1), numbered on from where the previous pass stopped, so that no two steps of a
+/// round share their random numbers whatever the two counts.
+#[must_use]
+pub fn pass_steps(fit_steps: u32, light_fit_steps: u32, pass: u32) -> std::ops::Range<u32> {
+    let (first_pass, later) = (fit_steps.max(1), light_fit_steps.max(1));
+    if pass == 0 {
+        0..first_pass
+    } else {
+        let start = first_pass + (pass - 1) * later;
+        start..start + later
+    }
+}
+
+/// Pass `pass` of a round's fit: ratio steps under the current light, `fit_steps` in pass 0 ([`fit_round`])
+/// and `light_fit_steps` in each later pass ([`super::light::refine_light`]'s, after a light cycle); random
+/// numbers keyed by (seed, round, step), the steps numbered on across the passes.
 pub fn fit_pass(
     inputs: &RoundInputs<'_>,
     scene: &tracer::Scene,
@@ -379,12 +394,13 @@ pub fn fit_pass(
     let mut loss = Vec::new();
     let mut residual = vec![Vec3::ZERO; samples.len()];
     let mut work = tracer::TraceStats::default();
-    let steps = cfg.fit_steps.max(1);
+    let keys = pass_steps(cfg.fit_steps, cfg.light_fit_steps, pass);
+    let (first, steps) = (keys.start, keys.len() as u32);
     // Per object and channel: the fraction of the ratio step taken, and the object's mean change last step.
     let objects = state.emission.len();
     let mut relax = vec![DVec3::ONE; objects];
     let mut last_step = vec![DVec3::ZERO; objects];
-    for k in pass * steps..(pass + 1) * steps {
+    for k in keys {
         let params = state.params();
         let (values, stats) = crate::blocks::render_blocks(
             &tracer::Renderer::new(scene, &params, inputs.tracer)?,
@@ -396,7 +412,7 @@ pub fn fit_pass(
             progress,
             &format!(
                 "round {round}: ratio step {}/{steps} of pass {pass} ({n} triangles, {} pixels at {} paths), block",
-                k - pass * steps + 1,
+                k - first + 1,
                 pix.len(),
                 cfg.spp
             ),
@@ -476,6 +492,26 @@ pub fn fit_pass(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_passes_of_a_round_number_their_steps_on_without_overlap() {
+        // Equal counts: pass p takes steps 3p..3p + 3, the numbering of one count for every pass.
+        for p in 0..3 {
+            assert_eq!(pass_steps(3, 3, p), 3 * p..3 * p + 3);
+        }
+        // Fewer steps after a light cycle: 0..3, then 3..4 and 4..5; a count of 0 still takes one step.
+        assert_eq!(pass_steps(3, 1, 0), 0..3);
+        assert_eq!(pass_steps(3, 1, 1), 3..4);
+        assert_eq!(pass_steps(3, 1, 2), 4..5);
+        assert_eq!(pass_steps(0, 2, 0), 0..1);
+        assert_eq!(pass_steps(0, 2, 1), 1..3);
+        // Any counts: consecutive passes are adjacent, so no key is used twice.
+        for (a, b) in [(1, 5), (7, 2), (3, 3)] {
+            for p in 0..4 {
+                assert_eq!(pass_steps(a, b, p).end, pass_steps(a, b, p + 1).start);
+            }
+        }
+    }
 
     #[test]
     fn an_object_whose_steps_reverse_takes_a_smaller_fraction_of_them() {

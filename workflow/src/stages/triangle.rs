@@ -90,6 +90,7 @@ impl From<&TriangleConfig> for TriangleSettings {
             max_triangles: c.max_triangles,
             light_steps: c.light_steps,
             light_precision: c.light_precision,
+            light_fit_steps: c.light_fit_steps,
             seed: c.seed,
         }
     }
