@@ -298,10 +298,11 @@ fn golden(
 /// reflection than a dielectric's F0 ≤ 0.08 gives, and halving it ([`ProfilePoint::loss_half_specular`])
 /// raises the profile loss by at least [`FLAT_PROFILE`] of the pixels' mean — the metal family too:
 /// [`search`] at metallic 1, then a golden-section search on metallic in [0, 1] at the better family's
-/// roughness, and, when the best metallic lies strictly between the two, [`search`] once more at it. A principled BSDF between the two families (Modern Hall's
-/// tiled floor at metallic 0.75) is fitted by neither end: its dielectric fit put the tiles' colour 0.1 too
-/// dark (docs/optim/design-measurements.md, "Metals between dielectric and conductor"). All evaluations share
-/// `key` (common random numbers), so the families are compared on the same paths.
+/// roughness, and, when the best metallic lies strictly between the two, [`search`] once more at it. A
+/// principled BSDF between the two families (Modern Hall's tiled floor at metallic 0.75) is fitted by neither
+/// end: its dielectric fit put the tiles' colour 0.1 too dark (docs/optim/design-measurements.md, "Metals
+/// between dielectric and conductor"). A blend is chosen only where it pays ([`pure_unless_blend_pays`]). All
+/// evaluations share `key` (common random numbers), so the families are compared on the same paths.
 pub fn search_lobe(
     ctx: &Ctx<'_>,
     x: &[f64],
@@ -340,5 +341,49 @@ pub fn search_lobe(
         let (_, blend_evals) = search(ctx, &at(blend.metallic), k, samples, spp, key)?;
         evals.extend(blend_evals);
     }
-    Ok((lowest(&evals).unwrap_or(dielectric), evals))
+    Ok((pure_unless_blend_pays(&evals, mean_target(samples)).unwrap_or(dielectric), evals))
+}
+
+/// The chosen lobe of a search over both families: the lowest evaluation of a pure family (metallic 0 or 1),
+/// unless a blend of the two lowers the profile loss below it by at least [`FLAT_PROFILE`] of the pixels'
+/// mean `mean_target`. A blend is a parameter more, kept only where the photos call for it (Modern Hall's
+/// tiled floor). Where a metal's profile is flat towards metallic 1 the golden section ends at an interior
+/// point (0.76–0.98 on the corpus house's metals) by the noise of the profile alone; there F0 = m·ρ, so the
+/// base colour comes out 1/m too bright (docs/optim/design-measurements.md, "Blends only where they pay").
+fn pure_unless_blend_pays(evals: &[ProfilePoint], mean_target: f64) -> Option<ProfilePoint> {
+    let is_pure = |p: &&ProfilePoint| p.metallic == 0.0 || p.metallic == 1.0;
+    let pure = lowest(&evals.iter().filter(is_pure).copied().collect::<Vec<_>>());
+    let blend = lowest(&evals.iter().filter(|p| !is_pure(p)).copied().collect::<Vec<_>>());
+    match (pure, blend) {
+        (Some(p), Some(b)) if b.loss <= p.loss - FLAT_PROFILE * mean_target => Some(b),
+        (Some(p), _) => Some(p),
+        (None, b) => b,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(metallic: f64, loss: f64) -> ProfilePoint {
+        ProfilePoint { roughness: 0.3, metallic, loss, base_color: [0.5; 3], specular: 0.5, loss_half_specular: None }
+    }
+
+    #[test]
+    fn a_blend_is_chosen_only_where_it_lowers_the_profile_by_the_flat_margin() {
+        let mean = 0.2;
+        let margin = FLAT_PROFILE * mean;
+        let pure = [point(0.0, 0.050), point(1.0, 0.040), point(1.0, 0.042)];
+        // A blend lower by less than the margin: the metal stays.
+        let evals: Vec<_> = pure.iter().copied().chain([point(0.889, 0.040 - 0.5 * margin)]).collect();
+        assert_eq!(pure_unless_blend_pays(&evals, mean), Some(point(1.0, 0.040)));
+        // Lower by the margin or more: the blend is kept.
+        let evals: Vec<_> = pure.iter().copied().chain([point(0.618, 0.040 - 1.5 * margin)]).collect();
+        assert_eq!(pure_unless_blend_pays(&evals, mean), Some(point(0.618, 0.040 - 1.5 * margin)));
+        // A blend worse than a pure family is never chosen; nothing to choose from gives nothing.
+        let evals: Vec<_> = pure.iter().copied().chain([point(0.5, 0.045)]).collect();
+        assert_eq!(pure_unless_blend_pays(&evals, mean), Some(point(1.0, 0.040)));
+        assert_eq!(pure_unless_blend_pays(&[], mean), None);
+        assert_eq!(pure_unless_blend_pays(&[point(0.3, 0.1)], mean), Some(point(0.3, 0.1)));
+    }
 }

@@ -402,11 +402,11 @@ pub fn refine_light(
     let mut fitted: Option<Fitted> = None;
     // Joint steps taken per cycle.
     let mut taken: Vec<u32> = Vec::new();
-    // Per emitter, the relative variance of the light the cycles have settled on so far (per channel).
-    let mut rel_var: Vec<DVec3> = Vec::new();
+    // Per emitter, the light the cycles have settled on so far (as the state holds it) and its relative
+    // variance per channel.
+    let mut settled: Vec<(DVec3, DVec3)> = Vec::new();
     for cycle in 0..LIGHT_CYCLES {
         let base: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
-        let cycle_from = state.emission.clone();
         let mut cumulative = vec![DVec3::ONE; objects];
         let (mut sum_s, mut n) = (vec![DVec3::ZERO; objects], 0.0);
         // Per averaged step, the emitters' emission (in `emitters` order).
@@ -468,17 +468,20 @@ pub fn refine_light(
                  joint steps"
             ));
         }
-        if cycle == 0 {
-            rel_var = cycle_rel_var(&averaged, emitters.len());
+        let rel_var = if cycle == 0 {
+            cycle_rel_var(&averaged, emitters.len())
         } else {
-            let cycle_start: Vec<DVec3> = emitters.iter().map(|&o| cycle_from[o].as_dvec3()).collect();
-            let pooled = pool_cycles(&cycle_start, &rel_var, &averaged);
+            let (prev, prev_var): (Vec<DVec3>, Vec<DVec3>) = settled.iter().copied().unzip();
+            let pooled = pool_cycles(&prev, &prev_var, &averaged);
             tracing::debug!(round, cycle, cycle_mean = ?mean_e, ?pooled, "triangle light cycles pooled");
+            let rel_var;
             (mean_e, rel_var) = pooled.into_iter().unzip();
-        }
+            rel_var
+        };
         for (&o, e) in emitters.iter().zip(&mean_e) {
             state.emission[o] = e.as_vec3();
         }
+        settled = emitters.iter().zip(rel_var).map(|(&o, v)| (state.emission[o].as_dvec3(), v)).collect();
         for (t, m) in state.materials.iter_mut().enumerate() {
             if free[t] {
                 let s = sum_s[state.face_object[t] as usize] / n;
@@ -758,14 +761,15 @@ mod tests {
                 })
                 .collect()
         };
+        let mean = |steps: &[Vec<DVec3>]| steps.iter().map(|s| s[0]).sum::<DVec3>() / n as f64;
         let rel_err2 = |e: DVec3, t: DVec3| ((e - t) / t).length_squared();
         let (mut pooled_err, mut second_err, mut moved_taken) = (0.0, 0.0, 0);
         for i in 0..trials {
             let first = cycle(i, 0, truth);
-            let prev = vec![first.iter().map(|s| s[0]).sum::<DVec3>() / n as f64];
+            let prev = vec![mean(&first)];
             let prev_var = cycle_rel_var(&first, 1);
             let second = cycle(i, 1, truth);
-            let second_mean = second.iter().map(|s| s[0]).sum::<DVec3>() / n as f64;
+            let second_mean = mean(&second);
             let (light, var) = pool_cycles(&prev, &prev_var, &second)[0];
             pooled_err += rel_err2(light, truth);
             second_err += rel_err2(second_mean, truth);
@@ -777,7 +781,7 @@ mod tests {
                 assert!(v < second_var[c] * second_mean[c] * second_mean[c], "{c}: {var}");
             }
             let moved = cycle(i, 1, truth * 1.4);
-            let moved_mean = moved.iter().map(|s| s[0]).sum::<DVec3>() / n as f64;
+            let moved_mean = mean(&moved);
             let (light, _) = pool_cycles(&prev, &prev_var, &moved)[0];
             moved_taken += usize::from((0..3).filter(|&c| light[c] == moved_mean[c]).count() >= 2);
         }
@@ -787,10 +791,9 @@ mod tests {
         assert!(moved_taken as f64 >= 0.9 * trials as f64, "a moved light taken in {moved_taken} of {trials}");
         // A previous light whose variance is unknown (infinite), or a channel at 0, takes the cycle's mean.
         let steps = cycle(0, 1, truth);
-        let mean = steps.iter().map(|s| s[0]).sum::<DVec3>() / n as f64;
-        assert_eq!(pool_cycles(&[truth], &[DVec3::INFINITY], &steps)[0].0, mean);
+        assert_eq!(pool_cycles(&[truth], &[DVec3::INFINITY], &steps)[0].0, mean(&steps));
         let (light, _) = pool_cycles(&[DVec3::new(20.0, 15.0, 0.0)], &[DVec3::splat(0.004)], &steps)[0];
-        assert_eq!(light.z, mean.z);
+        assert_eq!(light.z, mean(&steps).z);
         // No steps: everything as it was.
         assert_eq!(pool_cycles(&[truth], &[DVec3::splat(0.01)], &[]), vec![(truth, DVec3::splat(0.01))]);
     }

@@ -32,15 +32,15 @@
 //!   as the object stage's joint step does, the light moves together with every non-emitting object's
 //!   albedo *scale* (ρ_t → s_o·ρ_t, texture shape fixed): [`light::LIGHT_CYCLES`] (2) cycles of
 //!   Gauss–Newton steps on (e, s), averaged after the first [`light::LIGHT_BURN_IN`] (2), then
-//!   `light_fit_steps` ratio steps against the averaged light. A cycle takes [`light::LIGHT_MIN_STEPS`] (6) steps and goes on,
-//!   up to `light_steps` (18), while some emitter's averaged emission has a relative standard error above
-//!   `light_precision` (1 %, [`light::light_relative_se`]): a seen lamp scatters by under 1 % per step and
-//!   stops at the minimum, a lamp no photo sees by a quarter of its value and takes the budget. The second
-//!   cycle's light is pooled with the first's where they agree within their joint scatter
-//!   ([`light::pool_cycles`]: inverse-variance weights, a channel that moved by more than
+//!   `light_fit_steps` ratio steps against the averaged light. A cycle takes [`light::LIGHT_MIN_STEPS`] (6)
+//!   steps and goes on, up to `light_steps` (18), while some emitter's averaged emission has a relative
+//!   standard error above `light_precision` (1 %, [`light::light_relative_se`]): a seen lamp scatters by
+//!   under 1 % per step and stops at the minimum, a lamp no photo sees by a quarter of its value and takes
+//!   the budget. The second cycle's light is pooled with the first's where they agree within their joint
+//!   scatter ([`light::pool_cycles`]: inverse-variance weights, a channel that moved by more than
 //!   [`light::POOL_Z`] joint standard errors takes the new cycle's mean), so an unseen lamp known to 6–12 %
-//!   by each cycle is not re-drawn by the second but known better by both. Each
-//!   step is the object stage's solver on columns from the per-triangle scene
+//!   by each cycle is not re-drawn by the second but known better by both. Each step is the object stage's
+//!   solver on columns from the per-triangle scene
 //!   ([`crate::fit::emission_solve::solve_on_columns`]): ∂I/∂e_k and ∂I/∂s_o = Σ_(t ∈ o) ρ_t ∂I/∂ρ_t from the
 //!   same gradient paths, two independent estimates (instrumental variables), `object.solve_pixels` pixels
 //!   drawn from the round's pixels at `object.solve_spp` paths; objects whose per-object model has no emission
