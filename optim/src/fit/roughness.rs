@@ -259,8 +259,8 @@ fn flat(grid: &[Option<ProfilePoint>], mean_target: f64) -> bool {
 }
 
 /// The evaluation with the lowest profile loss.
-fn lowest(evals: &[ProfilePoint]) -> Option<ProfilePoint> {
-    evals.iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss))
+fn lowest<'a>(evals: impl IntoIterator<Item = &'a ProfilePoint>) -> Option<ProfilePoint> {
+    evals.into_iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss))
 }
 
 /// Golden-section minimisation of `eval` inside `[lo, hi]` for [`GOLDEN_STEPS`] steps; the caller keeps every
@@ -352,8 +352,8 @@ pub fn search_lobe(
 /// base colour comes out 1/m too bright (docs/optim/design-measurements.md, "Blends only where they pay").
 fn pure_unless_blend_pays(evals: &[ProfilePoint], mean_target: f64) -> Option<ProfilePoint> {
     let is_pure = |p: &&ProfilePoint| p.metallic == 0.0 || p.metallic == 1.0;
-    let pure = lowest(&evals.iter().filter(is_pure).copied().collect::<Vec<_>>());
-    let blend = lowest(&evals.iter().filter(|p| !is_pure(p)).copied().collect::<Vec<_>>());
+    let pure = lowest(evals.iter().filter(is_pure));
+    let blend = lowest(evals.iter().filter(|p| !is_pure(p)));
     match (pure, blend) {
         (Some(p), Some(b)) if b.loss <= p.loss - FLAT_PROFILE * mean_target => Some(b),
         (Some(p), _) => Some(p),

@@ -474,8 +474,8 @@ pub fn refine_light(
             let (prev, prev_var): (Vec<DVec3>, Vec<DVec3>) = settled.iter().copied().unzip();
             let pooled = pool_cycles(&prev, &prev_var, &averaged);
             tracing::debug!(round, cycle, cycle_mean = ?mean_e, ?pooled, "triangle light cycles pooled");
-            let rel_var;
-            (mean_e, rel_var) = pooled.into_iter().unzip();
+            let (light, rel_var): (Vec<DVec3>, Vec<DVec3>) = pooled.into_iter().unzip();
+            mean_e = light;
             rel_var
         };
         for (&o, e) in emitters.iter().zip(&mean_e) {
