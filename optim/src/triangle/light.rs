@@ -365,7 +365,8 @@ pub fn light_change_p(start: &[DVec3], steps: &[Vec<DVec3>]) -> f64 {
 /// The final round's light, in [`LIGHT_CYCLES`] cycles: joint Gauss–Newton steps on the emission of the
 /// emitting objects and the albedo scale of every other object (`solve_light`, per-triangle textures fixed in
 /// shape), whose iterates after the first [`LIGHT_BURN_IN`] are averaged (Polyak–Ruppert: once converged, each
-/// step scatters by the Monte Carlo noise of its Jacobian along the albedo/emission valley), then a pass of
+/// step scatters by the Monte Carlo noise of its Jacobian along the albedo/emission valley; each object's
+/// averaged scale shrunk toward the common one by [`shrink_scales`]), then a pass of
 /// `light_fit_steps` ratio steps against the averaged light ([`fit_pass`] `cycle + 1`), which lets the texture follow
 /// the new light before the next cycle. A cycle takes [`LIGHT_MIN_STEPS`] steps, and more, up to
 /// `triangle.light_steps`, while some emitter's averaged emission is known to worse than
@@ -408,7 +409,9 @@ pub fn refine_light(
     for cycle in 0..LIGHT_CYCLES {
         let base: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
         let mut cumulative = vec![DVec3::ONE; objects];
-        let (mut sum_s, mut n) = (vec![DVec3::ZERO; objects], 0.0);
+        // Per averaged step, every object's cumulative albedo scale.
+        let mut scale_steps: Vec<Vec<DVec3>> = Vec::new();
+        let mut n = 0.0;
         // Per averaged step, the emitters' emission (in `emitters` order).
         let mut averaged: Vec<Vec<DVec3>> = Vec::new();
         progress.phase(&format!("round {round}: light cycle {}, step", cycle + 1), u64::from(max_steps), 0);
@@ -425,9 +428,7 @@ pub fn refine_light(
                 *c *= *s;
             }
             if i >= LIGHT_BURN_IN.min(max_steps - 1) {
-                for o in 0..objects {
-                    sum_s[o] += cumulative[o];
-                }
+                scale_steps.push(cumulative.clone());
                 averaged.push(emitters.iter().map(|&o| state.emission[o].as_dvec3()).collect());
                 n += 1.0;
             }
@@ -482,9 +483,15 @@ pub fn refine_light(
             state.emission[o] = e.as_vec3();
         }
         settled = emitters.iter().zip(rel_var).map(|(&o, v)| (state.emission[o].as_dvec3(), v)).collect();
+        let mut scaled = vec![false; objects];
+        for (t, &o) in state.face_object.iter().enumerate() {
+            scaled[o as usize] |= free[t];
+        }
+        let shrunk = shrink_scales(&scale_steps, &scaled);
+        tracing::debug!(round, cycle, scales = ?scale_diagnostics(&scale_steps, &shrunk), "triangle light scales");
         for (t, m) in state.materials.iter_mut().enumerate() {
             if free[t] {
-                let s = sum_s[state.face_object[t] as usize] / n;
+                let s = shrunk[state.face_object[t] as usize];
                 m.base_color = (base[t].as_dvec3() * s).as_vec3().clamp(Vec3::ZERO, Vec3::ONE);
             }
         }
@@ -525,6 +532,108 @@ pub fn refine_light(
     fitted.discarded_samples += work.discarded;
     bound_discards(round, fitted.discarded_samples, fitted.traced_paths)?;
     Ok(Some(fitted))
+}
+
+/// Floor of a scale's per-step standard deviation in [`shrink_scales`] (0.1 %): a scale held at its bound in all
+/// but one step would otherwise weigh millions of times a wall's in the common scale. Far below any solve's
+/// Monte Carlo scatter (a seen lamp's averaged steps scatter by ~1 % each, an object's scale by more).
+const MIN_SCALE_STEP_SD: f64 = 1e-3;
+
+/// Per object, the albedo scale a cycle applies: the mean of its averaged steps' cumulative scales
+/// (`steps[i][o]`), shrunk toward the scale common to all objects by empirical Bayes. Each object's mean
+/// s̄_o has the sampling variance v_o = Var(steps)/n (the averaged steps scatter by their Monte Carlo noise
+/// once converged, as the light's do); the common scale m is the inverse-variance weighted mean of the
+/// `scaled` objects' means (the light's move, which every albedo answers with its inverse), and the objects'
+/// spread of true scales about it is τ² by the DerSimonian–Laird method of moments, per channel. Each object
+/// gets m + τ²/(τ² + v_o)·(s̄_o − m): a wall seen in thousands of the solves' rows keeps its own mean, an object
+/// seen in a few pixels, whose column rests on repeated draws of those few rows and whose steps scatter by
+/// tens of percent, follows the common scale instead of its noise. Objects that are not `scaled`, and
+/// objects whose steps never moved (no rows, or held at a bound), keep their value. The steps of a noisy
+/// object are positively correlated (lag-1 0.3–0.7 on the house, against a median of −0.01 over all objects),
+/// so its v_o is underestimated and the shrinkage errs toward keeping its own mean (measured:
+/// docs/optim/design-measurements.md, "Albedo scales shrunk toward the common scale").
+#[must_use]
+pub fn shrink_scales(steps: &[Vec<DVec3>], scaled: &[bool]) -> Vec<DVec3> {
+    let objects = scaled.len();
+    let n = steps.len();
+    if n == 0 {
+        return vec![DVec3::ONE; objects];
+    }
+    let nf = n as f64;
+    let moved: Vec<bool> = (0..objects).map(|o| steps.iter().any(|s| s[o] != steps[0][o])).collect();
+    // A scale that never moved is its value, exactly (a sum of n equal values divided by n need not be).
+    let mean: Vec<DVec3> = (0..objects)
+        .map(|o| if moved[o] { steps.iter().map(|s| s[o]).sum::<DVec3>() / nf } else { steps[0][o] })
+        .collect();
+    if n < 2 {
+        return mean;
+    }
+    // Variance of each object's mean, per channel; `None` where it is not estimated.
+    let var: Vec<Option<DVec3>> = (0..objects)
+        .map(|o| {
+            let v = steps.iter().map(|s| (s[o] - mean[o]) * (s[o] - mean[o])).sum::<DVec3>() / (nf - 1.0) / nf;
+            (scaled[o] && moved[o]).then(|| v.max(DVec3::splat(MIN_SCALE_STEP_SD * MIN_SCALE_STEP_SD / nf)))
+        })
+        .collect();
+    let weight = |v: DVec3| DVec3::ONE / v;
+    let (mut sw, mut sw2, mut swx, mut k) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, 0usize);
+    for (o, v) in var.iter().enumerate() {
+        let Some(v) = v else { continue };
+        let w = weight(*v);
+        sw += w;
+        sw2 += w * w;
+        swx += w * mean[o];
+        k += 1;
+    }
+    if k < 2 {
+        return mean;
+    }
+    let common = swx / sw;
+    let q = var
+        .iter()
+        .enumerate()
+        .filter_map(|(o, v)| v.map(|v| weight(v) * (mean[o] - common) * (mean[o] - common)))
+        .sum::<DVec3>();
+    // DerSimonian–Laird: E[Q] = (k − 1) + τ²·(Σw − Σw²/Σw).
+    let tau2 = ((q - DVec3::splat((k - 1) as f64)) / (sw - sw2 / sw)).max(DVec3::ZERO);
+    (0..objects)
+        .map(|o| match var[o] {
+            Some(v) => common + tau2 / (tau2 + v).max(DVec3::splat(f64::MIN_POSITIVE)) * (mean[o] - common),
+            None => mean[o],
+        })
+        .collect()
+}
+
+/// One object's line in the debug log of a cycle's scales: the object, its steps' plain mean, the standard
+/// error of that mean, the applied scale and the lag-1 autocorrelation of its steps (RGB each).
+type ScaleDiagnostic = (usize, [f32; 3], [f32; 3], [f32; 3], [f32; 3]);
+
+/// Per object with moving scales, its [`ScaleDiagnostic`].
+fn scale_diagnostics(steps: &[Vec<DVec3>], shrunk: &[DVec3]) -> Vec<ScaleDiagnostic> {
+    let n = steps.len();
+    if n < 3 {
+        return Vec::new();
+    }
+    let nf = n as f64;
+    (0..shrunk.len())
+        .filter_map(|o| {
+            let mean = steps.iter().map(|s| s[o]).sum::<DVec3>() / nf;
+            let dev: Vec<DVec3> = steps.iter().map(|s| s[o] - mean).collect();
+            let ss = dev.iter().map(|d| *d * *d).sum::<DVec3>();
+            if ss.max_element() <= 0.0 {
+                return None;
+            }
+            let lag1 = dev.windows(2).map(|w| w[0] * w[1]).sum::<DVec3>() / ss.max(DVec3::splat(f64::MIN_POSITIVE));
+            let se = (ss / (nf - 1.0) / nf).map(f64::sqrt);
+            Some((
+                o,
+                mean.as_vec3().to_array(),
+                se.as_vec3().to_array(),
+                shrunk[o].as_vec3().to_array(),
+                lag1.as_vec3().to_array(),
+            ))
+        })
+        .collect()
 }
 
 /// Whether a light re-solve fits the photos worse than the round's fit, from `fit_change`'s paired t and mean
@@ -673,6 +782,57 @@ mod tests {
             ((rng >> 11) as f64 + 0.5) / (1u64 << 53) as f64
         };
         (0..n).map(|_| (-2.0 * u().ln()).sqrt() * (2.0 * std::f64::consts::PI * u()).cos()).collect()
+    }
+
+    #[test]
+    fn noisy_albedo_scales_follow_the_common_scale_and_well_measured_ones_keep_their_own() {
+        // 40 walls whose true scales spread about 0.9 (the light rose by ~11 %) by ±0.05, measured by 16 steps
+        // of 1 % scatter; one object seen in a few pixels, true scale 0.9, whose steps scatter by 40 %; one
+        // emitter (not scaled) and one object whose steps never move.
+        let n = 16;
+        let mut draws = normals(0x0bad_5eed, 64 * n).into_iter();
+        let mut gauss = || draws.next().unwrap_or(0.0);
+        let walls = 40;
+        let truth: Vec<f64> = (0..walls).map(|i| 0.9 + 0.05 * ((i % 5) as f64 - 2.0) / 2.0).collect();
+        let (noisy, emitter, still) = (walls, walls + 1, walls + 2);
+        let steps: Vec<Vec<DVec3>> = (0..n)
+            .map(|_| {
+                let mut s: Vec<DVec3> = truth.iter().map(|&t| DVec3::splat(t * (1.0 + 0.01 * gauss()))).collect();
+                s.push(DVec3::splat(0.9 * (1.0 + 0.4 * gauss())));
+                s.push(DVec3::ONE);
+                s.push(DVec3::splat(0.7));
+                s
+            })
+            .collect();
+        let mut scaled = vec![true; walls + 3];
+        scaled[emitter] = false;
+        let out = shrink_scales(&steps, &scaled);
+        let plain = |o: usize| steps.iter().map(|s| s[o].x).sum::<f64>() / n as f64;
+        for (o, &t) in truth.iter().enumerate() {
+            // Each wall's mean is known to 1 %/√16 = 0.25 %, far inside the walls' spread: kept.
+            assert!((out[o].x - plain(o)).abs() < 0.002, "wall {o}: {} against its mean {}", out[o].x, plain(o));
+            assert!((out[o].x - t).abs() < 0.01, "wall {o}: {} against {t}", out[o].x);
+        }
+        // The noisy object's mean is known to 0.9·40 %/4 = 9 %, twice the walls' spread: pulled most of the way
+        // to the common scale (≈ 0.9).
+        let common = out[..walls].iter().map(|s| s.x).sum::<f64>() / walls as f64;
+        let keep = (out[noisy].x - common) / (plain(noisy) - common);
+        assert!(
+            (0.0..0.35).contains(&keep),
+            "noisy object {} from its mean {} (kept {keep})",
+            out[noisy].x,
+            plain(noisy)
+        );
+        // Not scaled, or never moved: the plain mean.
+        assert_eq!(out[emitter], DVec3::ONE);
+        assert_eq!(out[still], DVec3::splat(0.7));
+        // Without any spread between the objects, every noisy mean goes to the common scale.
+        let flat: Vec<Vec<DVec3>> = (0..n)
+            .map(|_| (0..10).map(|o| DVec3::splat(1.1 * (1.0 + if o == 0 { 0.3 } else { 0.01 } * gauss()))).collect())
+            .collect();
+        let out = shrink_scales(&flat, &[true; 10]);
+        assert!((out[0].x - out[1].x).abs() < 0.01, "{out:?}");
+        assert!((out[0].x - 1.1).abs() < 0.01, "{out:?}");
     }
 
     #[test]

@@ -32,7 +32,10 @@
 //!   as the object stage's joint step does, the light moves together with every non-emitting object's
 //!   albedo *scale* (ρ_t → s_o·ρ_t, texture shape fixed): [`light::LIGHT_CYCLES`] (2) cycles of
 //!   Gauss–Newton steps on (e, s), averaged after the first [`light::LIGHT_BURN_IN`] (2), then
-//!   `light_fit_steps` ratio steps against the averaged light. A cycle takes [`light::LIGHT_MIN_STEPS`] (6)
+//!   `light_fit_steps` ratio steps against the averaged light. Each object's averaged scale is shrunk toward
+//!   the scale common to all objects as far as its steps' scatter leaves it unknown
+//!   ([`light::shrink_scales`], empirical Bayes): an object seen in a few pixels scatters by tens of percent
+//!   per step and follows the light's common move instead of its noise. A cycle takes [`light::LIGHT_MIN_STEPS`] (6)
 //!   steps and goes on, up to `light_steps` (18), while some emitter's averaged emission has a relative
 //!   standard error above `light_precision` (1 %, [`light::light_relative_se`]): a seen lamp scatters by
 //!   under 1 % per step and stops at the minimum, a lamp no photo sees by a quarter of its value and takes
