@@ -540,65 +540,66 @@ pub fn refine_light(
 const MIN_SCALE_STEP_SD: f64 = 1e-3;
 
 /// Per object, the albedo scale a cycle applies: the mean of its averaged steps' cumulative scales
-/// (`steps[i][o]`), shrunk toward the scale common to all objects by empirical Bayes. Each object's mean
-/// s̄_o has the sampling variance v_o = Var(steps)/n (the averaged steps scatter by their Monte Carlo noise
-/// once converged, as the light's do); the common scale m is the inverse-variance weighted mean of the
-/// `scaled` objects' means (the light's move, which every albedo answers with its inverse), and the objects'
-/// spread of true scales about it is τ² by the DerSimonian–Laird method of moments, per channel. Each object
-/// gets m + τ²/(τ² + v_o)·(s̄_o − m): a wall seen in thousands of the solves' rows keeps its own mean, an object
-/// seen in a few pixels, whose column rests on repeated draws of those few rows and whose steps scatter by
-/// tens of percent, follows the common scale instead of its noise. Objects that are not `scaled`, and
-/// objects whose steps never moved (no rows, or held at a bound), keep their value. The steps of a noisy
-/// object are positively correlated (lag-1 0.3–0.7 on the house, against a median of −0.01 over all objects),
-/// so its v_o is underestimated and the shrinkage errs toward keeping its own mean (measured:
+/// (`steps[i][o]`), shrunk toward the scale common to all objects by empirical Bayes, channel by channel
+/// ([`shrink_channel`]). Each object's mean s̄_o has the sampling variance v_o = Var(steps)/n (the averaged
+/// steps scatter by their Monte Carlo noise once converged, as the light's do); the common scale m is the
+/// inverse-variance weighted mean of the `scaled` objects' means (the light's move, which every albedo answers
+/// with its inverse), and the objects' spread of true scales about it is τ² by the DerSimonian–Laird method of
+/// moments. Each object gets m + τ²/(τ² + v_o)·(s̄_o − m): a wall seen in thousands of the solves' rows keeps
+/// its own mean, an object seen in a few pixels, whose column rests on repeated draws of those few rows and
+/// whose steps scatter by tens of percent, follows the common scale instead of its noise. Objects that are
+/// not `scaled`, and channels whose steps never moved (no rows, a base colour of 0 in that channel, or held at
+/// a bound), keep their value and take no part in the common scale. The steps of a noisy object are
+/// positively correlated (lag-1 0.3–0.7 on the house, against a median of −0.01 over all objects), so its v_o
+/// is underestimated and the shrinkage errs toward keeping its own mean (measured:
 /// docs/optim/design-measurements.md, "Albedo scales shrunk toward the common scale").
 #[must_use]
 pub fn shrink_scales(steps: &[Vec<DVec3>], scaled: &[bool]) -> Vec<DVec3> {
-    let objects = scaled.len();
-    let n = steps.len();
-    if n == 0 {
-        return vec![DVec3::ONE; objects];
+    if steps.is_empty() {
+        return vec![DVec3::ONE; scaled.len()];
     }
-    let nf = n as f64;
-    let moved: Vec<bool> = (0..objects).map(|o| steps.iter().any(|s| s[o] != steps[0][o])).collect();
-    // A scale that never moved is its value, exactly (a sum of n equal values divided by n need not be).
-    let mean: Vec<DVec3> = (0..objects)
-        .map(|o| if moved[o] { steps.iter().map(|s| s[o]).sum::<DVec3>() / nf } else { steps[0][o] })
-        .collect();
-    if n < 2 {
-        return mean;
-    }
-    // Variance of each object's mean, per channel; `None` where it is not estimated.
-    let var: Vec<Option<DVec3>> = (0..objects)
-        .map(|o| {
-            let v = steps.iter().map(|s| (s[o] - mean[o]) * (s[o] - mean[o])).sum::<DVec3>() / (nf - 1.0) / nf;
-            (scaled[o] && moved[o]).then(|| v.max(DVec3::splat(MIN_SCALE_STEP_SD * MIN_SCALE_STEP_SD / nf)))
+    let channels: Vec<Vec<f64>> = (0..3)
+        .map(|c| {
+            let rows: Vec<Vec<f64>> = steps.iter().map(|s| s.iter().map(|v| v[c]).collect()).collect();
+            shrink_channel(&rows, scaled)
         })
         .collect();
-    let weight = |v: DVec3| DVec3::ONE / v;
-    let (mut sw, mut sw2, mut swx, mut k) = (DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, 0usize);
-    for (o, v) in var.iter().enumerate() {
-        let Some(v) = v else { continue };
-        let w = weight(*v);
-        sw += w;
-        sw2 += w * w;
-        swx += w * mean[o];
-        k += 1;
+    (0..scaled.len()).map(|o| DVec3::new(channels[0][o], channels[1][o], channels[2][o])).collect()
+}
+
+/// One channel of [`shrink_scales`]: `steps[i][o]` is object o's cumulative scale at averaged step i.
+fn shrink_channel(steps: &[Vec<f64>], scaled: &[bool]) -> Vec<f64> {
+    let objects = scaled.len();
+    let nf = steps.len() as f64;
+    let moved: Vec<bool> = (0..objects).map(|o| steps.iter().any(|s| s[o] != steps[0][o])).collect();
+    // A scale that never moved is its value, exactly (a sum of n equal values divided by n need not be).
+    let mean: Vec<f64> = (0..objects)
+        .map(|o| if moved[o] { steps.iter().map(|s| s[o]).sum::<f64>() / nf } else { steps[0][o] })
+        .collect();
+    if steps.len() < 2 {
+        return mean;
     }
+    // Variance of each object's mean; `None` where it takes no part.
+    let var: Vec<Option<f64>> = (0..objects)
+        .map(|o| {
+            let v = steps.iter().map(|s| (s[o] - mean[o]).powi(2)).sum::<f64>() / (nf - 1.0) / nf;
+            (scaled[o] && moved[o]).then(|| v.max(MIN_SCALE_STEP_SD * MIN_SCALE_STEP_SD / nf))
+        })
+        .collect();
+    let members: Vec<(usize, f64)> = var.iter().enumerate().filter_map(|(o, v)| v.map(|v| (o, 1.0 / v))).collect();
+    let k = members.len();
     if k < 2 {
         return mean;
     }
-    let common = swx / sw;
-    let q = var
-        .iter()
-        .enumerate()
-        .filter_map(|(o, v)| v.map(|v| weight(v) * (mean[o] - common) * (mean[o] - common)))
-        .sum::<DVec3>();
+    let sw: f64 = members.iter().map(|&(_, w)| w).sum();
+    let sw2: f64 = members.iter().map(|&(_, w)| w * w).sum();
+    let common = members.iter().map(|&(o, w)| w * mean[o]).sum::<f64>() / sw;
+    let q: f64 = members.iter().map(|&(o, w)| w * (mean[o] - common).powi(2)).sum();
     // DerSimonian–Laird: E[Q] = (k − 1) + τ²·(Σw − Σw²/Σw).
-    let tau2 = ((q - DVec3::splat((k - 1) as f64)) / (sw - sw2 / sw)).max(DVec3::ZERO);
+    let tau2 = ((q - (k - 1) as f64) / (sw - sw2 / sw)).max(0.0);
     (0..objects)
         .map(|o| match var[o] {
-            Some(v) => common + tau2 / (tau2 + v).max(DVec3::splat(f64::MIN_POSITIVE)) * (mean[o] - common),
+            Some(v) => common + tau2 / (tau2 + v).max(f64::MIN_POSITIVE) * (mean[o] - common),
             None => mean[o],
         })
         .collect()
@@ -826,6 +827,23 @@ mod tests {
         // Not scaled, or never moved: the plain mean.
         assert_eq!(out[emitter], DVec3::ONE);
         assert_eq!(out[still], DVec3::splat(0.7));
+        // A channel that never moves (an object whose blue base colour is 0 has a zero column there) keeps its
+        // value and does not pull that channel's common scale to it: the noisy object's blue still goes to the
+        // walls' 0.9, not to the dead channel's 1.
+        let dead = walls + 3;
+        let with_dead: Vec<Vec<DVec3>> = steps
+            .iter()
+            .map(|s| {
+                let mut s = s.clone();
+                s.push(DVec3::new(0.9 * (1.0 + 0.01 * gauss()), 0.9 * (1.0 + 0.01 * gauss()), 1.0));
+                s
+            })
+            .collect();
+        let mut scaled_dead = scaled.clone();
+        scaled_dead.push(true);
+        let out_dead = shrink_scales(&with_dead, &scaled_dead);
+        assert_eq!(out_dead[dead].z, 1.0);
+        assert!((out_dead[noisy].z - out[noisy].z).abs() < 1e-3, "{} against {}", out_dead[noisy].z, out[noisy].z);
         // Without any spread between the objects, every noisy mean goes to the common scale.
         let flat: Vec<Vec<DVec3>> = (0..n)
             .map(|_| (0..10).map(|o| DVec3::splat(1.1 * (1.0 + if o == 0 { 0.3 } else { 0.01 } * gauss()))).collect())
