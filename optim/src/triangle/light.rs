@@ -548,8 +548,11 @@ const MIN_SCALE_STEP_SD: f64 = 1e-3;
 /// moments. Each object gets m + τ²/(τ² + v_o)·(s̄_o − m): a wall seen in thousands of the solves' rows keeps
 /// its own mean, an object seen in a few pixels, whose column rests on repeated draws of those few rows and
 /// whose steps scatter by tens of percent, follows the common scale instead of its noise. Objects that are
-/// not `scaled`, and channels whose steps never moved (no rows, a base colour of 0 in that channel, or held at
-/// a bound), keep their value and take no part in the common scale. The steps of a noisy object are
+/// not `scaled`, and channels whose averaged steps never moved, take no part in the common scale; of those, a
+/// channel still at 1 (no rows, or a base colour of 0 in that channel) keeps it, and one that moved during the
+/// burn-in and then froze (its column out of reach of the averaged steps' rows, or its albedo held at 1) takes
+/// the common scale: its burn-in move is not averaged evidence. Without the latter rule an object no photo
+/// sees froze at (0.5, 1.87, 0.5) on the house and kept it. The steps of a noisy object are
 /// positively correlated (lag-1 0.3–0.7 on the house, against a median of −0.01 over all objects), so its v_o
 /// is underestimated and the shrinkage errs toward keeping its own mean (measured:
 /// docs/optim/design-measurements.md, "Albedo scales shrunk toward the common scale").
@@ -600,6 +603,9 @@ fn shrink_channel(steps: &[Vec<f64>], scaled: &[bool]) -> Vec<f64> {
     (0..objects)
         .map(|o| match var[o] {
             Some(v) => common + tau2 / (tau2 + v).max(f64::MIN_POSITIVE) * (mean[o] - common),
+            // Moved during the burn-in, then frozen (a column that no averaged step's rows reach, or an albedo
+            // held at 1): the averaged steps say nothing of its noise, so the common scale.
+            None if scaled[o] && mean[o] != 1.0 => common,
             None => mean[o],
         })
         .collect()
@@ -789,7 +795,7 @@ mod tests {
     fn noisy_albedo_scales_follow_the_common_scale_and_well_measured_ones_keep_their_own() {
         // 40 walls whose true scales spread about 0.9 (the light rose by ~11 %) by ±0.05, measured by 16 steps
         // of 1 % scatter; one object seen in a few pixels, true scale 0.9, whose steps scatter by 40 %; one
-        // emitter (not scaled) and one object whose steps never move.
+        // emitter (not scaled) and one object whose steps never move from 1.
         let n = 16;
         let mut draws = normals(0x0bad_5eed, 64 * n).into_iter();
         let mut gauss = || draws.next().unwrap_or(0.0);
@@ -801,7 +807,7 @@ mod tests {
                 let mut s: Vec<DVec3> = truth.iter().map(|&t| DVec3::splat(t * (1.0 + 0.01 * gauss()))).collect();
                 s.push(DVec3::splat(0.9 * (1.0 + 0.4 * gauss())));
                 s.push(DVec3::ONE);
-                s.push(DVec3::splat(0.7));
+                s.push(DVec3::ONE);
                 s
             })
             .collect();
@@ -824,9 +830,9 @@ mod tests {
             out[noisy].x,
             plain(noisy)
         );
-        // Not scaled, or never moved: the plain mean.
+        // Not scaled, or never moved from 1: kept.
         assert_eq!(out[emitter], DVec3::ONE);
-        assert_eq!(out[still], DVec3::splat(0.7));
+        assert_eq!(out[still], DVec3::ONE);
         // A channel that never moves (an object whose blue base colour is 0 has a zero column there) keeps its
         // value and does not pull that channel's common scale to it: the noisy object's blue still goes to the
         // walls' 0.9, not to the dead channel's 1.
@@ -843,6 +849,19 @@ mod tests {
         scaled_dead.push(true);
         let out_dead = shrink_scales(&with_dead, &scaled_dead);
         assert_eq!(out_dead[dead].z, 1.0);
+        // A channel that moved during the burn-in and then froze at 1.87 takes the common scale.
+        let frozen: Vec<Vec<DVec3>> = with_dead
+            .iter()
+            .map(|s| {
+                let mut s = s.clone();
+                s.push(DVec3::new(0.9 * (1.0 + 0.01 * gauss()), 1.87, 0.9 * (1.0 + 0.01 * gauss())));
+                s
+            })
+            .collect();
+        let mut scaled_frozen = scaled_dead.clone();
+        scaled_frozen.push(true);
+        let out_frozen = shrink_scales(&frozen, &scaled_frozen);
+        assert!((out_frozen[dead + 1].y - 0.9).abs() < 0.01, "{}", out_frozen[dead + 1].y);
         assert!((out_dead[noisy].z - out[noisy].z).abs() < 1e-3, "{} against {}", out_dead[noisy].z, out[noisy].z);
         // Without any spread between the objects, every noisy mean goes to the common scale.
         let flat: Vec<Vec<DVec3>> = (0..n)
