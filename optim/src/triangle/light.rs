@@ -11,7 +11,7 @@ use super::ratio::{Fitted, bound_discards, fit_pass};
 use super::{RoundInputs, TriangleError, TriangleState};
 use crate::fit::emission_solve::{Columns, SolveOptions, Unknowns, solve_on_columns};
 use crate::fit::jacobian::Ctx;
-use crate::fit::linear::DataLoss;
+use crate::fit::linear::{DataLoss, mean_se};
 use crate::fit::pixels::{Stratum, draw_strata_rows};
 use crate::fit::samples::SampleCounter;
 use crate::fit::solve::{SOLVE_FLOOR, solve_options};
@@ -105,13 +105,7 @@ fn solve_light(
     let drawn: Vec<&TriSample> = rows.iter().map(|&j| &samples[j]).collect();
     let pix: Vec<PixelRef> = drawn.iter().map(|p| p.pixel).collect();
     let targets: Vec<Vec3> = drawn.iter().map(|p| p.target).collect();
-    // Objects whose albedo scale is an unknown: those with a fitted (non-emitting) triangle.
-    let mut scaled = vec![false; objects];
-    for (t, &o) in state.face_object.iter().enumerate() {
-        if free[t] {
-            scaled[o as usize] = true;
-        }
-    }
+    let scaled = scaled_objects(&state.face_object, free, objects);
     let scaled: Vec<usize> = (0..objects).filter(|&o| scaled[o]).collect();
     let mut slot = vec![usize::MAX; objects];
     for (i, &o) in scaled.iter().enumerate() {
@@ -216,6 +210,16 @@ fn solve_light(
         per_object[o] = DVec3::from_array(*v);
     }
     Ok(per_object)
+}
+
+/// Per object, whether its albedo scale is an unknown of the light re-solve: it has a fitted (`free`,
+/// non-emitting) triangle.
+fn scaled_objects(face_object: &[u32], free: &[bool], objects: usize) -> Vec<bool> {
+    let mut scaled = vec![false; objects];
+    for (&o, &f) in face_object.iter().zip(free) {
+        scaled[o as usize] |= f;
+    }
+    scaled
 }
 
 /// The round's pixels grouped by the object their centre sees (the strata of [`solve_light`]'s draw), in
@@ -396,6 +400,7 @@ pub fn refine_light(
     let free: Vec<bool> = state.face_object.iter().map(|&o| !emits[o as usize]).collect();
     let objects = state.emission.len();
     let strata = object_strata(samples, &state.face_object, objects);
+    let scaled = scaled_objects(&state.face_object, &free, objects);
     let mut work = tracer::TraceStats::default();
     let start = state.emission.clone();
     let kept_materials = state.materials.clone();
@@ -483,10 +488,6 @@ pub fn refine_light(
             state.emission[o] = e.as_vec3();
         }
         settled = emitters.iter().zip(rel_var).map(|(&o, v)| (state.emission[o].as_dvec3(), v)).collect();
-        let mut scaled = vec![false; objects];
-        for (t, &o) in state.face_object.iter().enumerate() {
-            scaled[o as usize] |= free[t];
-        }
         let shrunk = shrink_scales(&scale_steps, &scaled);
         tracing::debug!(round, cycle, scales = ?scale_diagnostics(&scale_steps, &shrunk), "triangle light scales");
         for (t, m) in state.materials.iter_mut().enumerate() {
@@ -563,32 +564,31 @@ pub fn shrink_scales(steps: &[Vec<DVec3>], scaled: &[bool]) -> Vec<DVec3> {
     }
     let channels: Vec<Vec<f64>> = (0..3)
         .map(|c| {
-            let rows: Vec<Vec<f64>> = steps.iter().map(|s| s.iter().map(|v| v[c]).collect()).collect();
-            shrink_channel(&rows, scaled)
+            let columns: Vec<Vec<f64>> = (0..scaled.len()).map(|o| steps.iter().map(|s| s[o][c]).collect()).collect();
+            shrink_channel(&columns, scaled)
         })
         .collect();
     (0..scaled.len()).map(|o| DVec3::new(channels[0][o], channels[1][o], channels[2][o])).collect()
 }
 
-/// One channel of [`shrink_scales`]: `steps[i][o]` is object o's cumulative scale at averaged step i.
-fn shrink_channel(steps: &[Vec<f64>], scaled: &[bool]) -> Vec<f64> {
+/// One channel of [`shrink_scales`]: `columns[o][i]` is object o's cumulative scale at averaged step i.
+fn shrink_channel(columns: &[Vec<f64>], scaled: &[bool]) -> Vec<f64> {
     let objects = scaled.len();
-    let nf = steps.len() as f64;
-    let moved: Vec<bool> = (0..objects).map(|o| steps.iter().any(|s| s[o] != steps[0][o])).collect();
-    // A scale that never moved is its value, exactly (a sum of n equal values divided by n need not be).
-    let mean: Vec<f64> = (0..objects)
-        .map(|o| if moved[o] { steps.iter().map(|s| s[o]).sum::<f64>() / nf } else { steps[0][o] })
-        .collect();
-    if steps.len() < 2 {
-        return mean;
-    }
-    // Variance of each object's mean; `None` where it takes no part.
-    let var: Vec<Option<f64>> = (0..objects)
-        .map(|o| {
-            let v = steps.iter().map(|s| (s[o] - mean[o]).powi(2)).sum::<f64>() / (nf - 1.0) / nf;
-            (scaled[o] && moved[o]).then(|| v.max(MIN_SCALE_STEP_SD * MIN_SCALE_STEP_SD / nf))
+    let moved: Vec<bool> = columns.iter().map(|col| col.iter().any(|&v| v != col[0])).collect();
+    // Mean and variance of the mean; a scale that never moved is its value, exactly (a sum of n equal values
+    // divided by n need not be), and takes no part (`None`), nor does an object that is not scaled.
+    let (mean, var): (Vec<f64>, Vec<Option<f64>>) = columns
+        .iter()
+        .enumerate()
+        .map(|(o, col)| {
+            if !moved[o] {
+                return (col[0], None);
+            }
+            let (m, se) = mean_se(col);
+            let floor = MIN_SCALE_STEP_SD * MIN_SCALE_STEP_SD / col.len() as f64;
+            (m, scaled[o].then(|| (se * se).max(floor)))
         })
-        .collect();
+        .unzip();
     let members: Vec<(usize, f64)> = var.iter().enumerate().filter_map(|(o, v)| v.map(|v| (o, 1.0 / v))).collect();
     let k = members.len();
     if k < 2 {
