@@ -94,7 +94,7 @@ pub(super) fn second_look(
     if tested.iter().any(|&t| t) {
         switch_to_metals(ctx, s, lobe_test, mean_target, x, &tested, &probed, (&xt, &xd), glossy, why, progress)?;
     }
-    recheck_metals(ctx, s, sets, lobe_test, mean_target, x, &first_metals, glossy, why, progress)
+    recheck_metals(ctx, s, sets, lobe_test, mean_target, x, &first_metals, why, progress)
 }
 
 /// The second look's tests of the metal lobes `xt` of the `tested` objects against their models `x` and then
@@ -190,9 +190,8 @@ fn switch_to_metals(
 /// dielectric family's best lobe under the settled light (the roughness search of [`roughness::search`] at
 /// metallic 0 from the first look's mid-range start, on the object's lobe-choosing pixels), on `lobe_test` as the
 /// second look tests: the metal stays where it beats that lobe ([`Verdict::passes`]), else the dielectric lobe
-/// (its profile solve's base colour, roughness and specular, metallic 0) replaces it; a dielectric lobe whose
-/// specular strength is 0 (the solve's bound) is exactly Lambert, so the object is then diffuse (`glossy` false,
-/// roughness back to the start value [`layout::START_ROUGHNESS`], which a Lambert surface does not use). The
+/// (its profile solve's base colour, roughness and specular, metallic 0) replaces it (a replacing lobe whose
+/// specular strength is 0 is exactly Lambert, and model selection's last step makes such an object diffuse). The
 /// burden of proof is the second look's: a metal is a departure from the dielectric that most surfaces are, and
 /// the evidence must be for a metal, not for any lobe. The first look decides between the families on its
 /// training pixels, under a light not yet settled, and a rough metal lobe (roughness ≥ 0.6) lights its pixels
@@ -207,7 +206,6 @@ fn recheck_metals(
     mean_target: f64,
     x: &mut [f64],
     first_metals: &[bool],
-    glossy: &mut [bool],
     why: &mut [Vec<String>],
     progress: &dyn crate::Progress,
 ) -> Result<(), FitError> {
@@ -264,15 +262,8 @@ fn recheck_metals(
             why[k].push(format!("{metal} kept: {against}"));
         } else {
             layout::copy_material(x, &xd, k);
-            let by = if x[idx(k, SPECULAR)] == 0.0 {
-                glossy[k] = false;
-                x[idx(k, ROUGHNESS)] = layout::START_ROUGHNESS;
-                "a diffuse surface (the best dielectric lobe has no specular reflection)"
-            } else {
-                "the dielectric lobe"
-            };
             why[k].push(format!(
-                "{metal} replaced by {by}: {against} (a metal needs t > {T_KEEP} and > {:.1} %)",
+                "{metal} replaced by the dielectric lobe: {against} (a metal needs t > {T_KEEP} and > {:.1} %)",
                 100.0 * MIN_GAIN
             ));
         }

@@ -1164,6 +1164,7 @@ pub fn choose_models(
             progress,
         )?;
     }
+    lambert_lobes_are_diffuse(&mut x, &mut glossy, &mut why);
     let models = (0..k_count)
         .map(|k| {
             let mut reasons = why[k].clone();
@@ -1192,9 +1193,46 @@ pub fn choose_models(
     Ok((x, models, split))
 }
 
+/// Objects whose lobe has neither specular strength nor metallic (both at the profile solve's bound 0) are
+/// diffuse: such a lobe is exactly Lambert (`tracer::bsdf`), whatever its roughness. Their roughness goes back to
+/// the start value [`layout::START_ROUGHNESS`] that every diffuse object carries, and `why` says so. Labelled
+/// `specular`, such an object reported a roughness that nothing used, and the export's detail texture, which
+/// takes diffuse objects only, left it out (on the house 2 objects at each of three seeds, a wall and a box
+/// among them).
+fn lambert_lobes_are_diffuse(x: &mut [f64], glossy: &mut [bool], why: &mut [Vec<String>]) {
+    for k in 0..glossy.len() {
+        if glossy[k] && x[idx(k, METALLIC)] == 0.0 && x[idx(k, SPECULAR)] == 0.0 {
+            glossy[k] = false;
+            x[idx(k, ROUGHNESS)] = layout::START_ROUGHNESS;
+            why[k].push(
+                "diffuse after all: its lobe has no specular reflection (specular and metallic 0), which is \
+                 exactly Lambert"
+                    .into(),
+            );
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_lobe_without_specular_reflection_is_diffuse() {
+        let mut x = layout::initial(3);
+        for (k, (m, sp)) in [(0.0, 0.0), (0.0, 0.3), (1.0, 0.0)].into_iter().enumerate() {
+            x[idx(k, ROUGHNESS)] = 0.62;
+            x[idx(k, METALLIC)] = m;
+            x[idx(k, SPECULAR)] = sp;
+        }
+        let mut glossy = vec![true; 3];
+        let mut why = vec![Vec::new(); 3];
+        lambert_lobes_are_diffuse(&mut x, &mut glossy, &mut why);
+        assert_eq!(glossy, [false, true, true]);
+        assert_eq!(x[idx(0, ROUGHNESS)], layout::START_ROUGHNESS);
+        assert_eq!((x[idx(1, ROUGHNESS)], x[idx(2, ROUGHNESS)]), (0.62, 0.62));
+        assert!(why[0][0].contains("exactly Lambert") && why[1].is_empty() && why[2].is_empty(), "{why:?}");
+    }
 
     #[test]
     fn an_emission_against_a_white_alternative_needs_less_evidence() {
