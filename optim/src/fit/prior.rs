@@ -263,21 +263,20 @@ pub fn standard_errors(
         let sub = |mat: &[f64]| -> Vec<f64> {
             keep.iter().flat_map(|&p| keep.iter().map(move |&q| (p, q))).map(|(p, q)| mat[p * n_all + q]).collect()
         };
-        let (mut g, meat) = (sub(&gram), sub(&meat));
+        let (g, meat) = (sub(&gram), sub(&meat));
         let wanted: Vec<(usize, usize)> = objects
             .iter()
             .enumerate()
             .filter_map(|(o, &k)| keep.iter().position(|&i| vars[i] == k).map(|i| (o, i)))
             .collect();
         let idxs: Vec<usize> = wanted.iter().map(|&(_, i)| i).collect();
-        let own: Vec<f64> = idxs.iter().map(|&i| g[i * n + i]).collect();
-        let (variances, ridge) = ridged_sandwich(&mut g, &meat, n, &idxs);
-        for ((&(o, _), v), own) in wanted.iter().zip(variances).zip(own) {
+        let (variances, ridge) = ridged_sandwich(&g, &meat, n, &idxs);
+        for (&(o, i), v) in wanted.iter().zip(variances) {
             out[o][c] = v.map_or(f64::INFINITY, |d| (d / (m * averaged.max(1)) as f64).sqrt());
             tracing::debug!(
                 object = objects[o],
                 channel = c,
-                information = own,
+                information = g[i * n + i],
                 ridge,
                 se = out[o][c],
                 "unseen object's standard error"
@@ -301,26 +300,27 @@ const RIDGE_DOMINANCE: f64 = 10.0;
 /// well-determined variance measurably. A variable whose own diagonal is below [`RIDGE_DOMINANCE`] times the
 /// ridge that was needed, or whose variance is not positive (the cross-product meat is unbiased but not
 /// positive definite: such a variance is noise), gets `None`, as does every variable when no ridge makes the
-/// bread factorisable. Returns the variances and the ridge; `g` comes back with the ridge on its diagonal.
-fn ridged_sandwich(g: &mut [f64], meat: &[f64], n: usize, idxs: &[usize]) -> (Vec<Option<f64>>, f64) {
-    let own: Vec<f64> = (0..n).map(|i| g[i * n + i]).collect();
-    let scale = own.iter().copied().fold(0.0f64, f64::max);
+/// bread factorisable. Returns the variances and the ridge.
+fn ridged_sandwich(g: &[f64], meat: &[f64], n: usize, idxs: &[usize]) -> (Vec<Option<f64>>, f64) {
+    let own = |i: usize| g[i * n + i];
+    let scale = (0..n).map(own).fold(0.0f64, f64::max);
+    let mut ridged = g.to_vec();
     let mut ridge = 0.0;
     let mut diag = None;
     for step in 0..6 {
-        diag = sandwich_diagonal(g, meat, n, idxs);
+        diag = sandwich_diagonal(&ridged, meat, n, idxs);
         if diag.is_some() {
             break;
         }
         let next = scale * 10f64.powi(step - 6);
         for i in 0..n {
-            g[i * n + i] += next - ridge;
+            ridged[i * n + i] += next - ridge;
         }
         ridge = next;
     }
     let variances = match diag {
         Some(diag) => {
-            idxs.iter().zip(diag).map(|(&i, d)| (d > 0.0 && own[i] >= RIDGE_DOMINANCE * ridge).then_some(d)).collect()
+            idxs.iter().zip(diag).map(|(&i, d)| (d > 0.0 && own(i) >= RIDGE_DOMINANCE * ridge).then_some(d)).collect()
         }
         None => vec![None; idxs.len()],
     };
@@ -421,25 +421,25 @@ mod tests {
     #[test]
     fn a_ridge_gives_no_variance_to_a_variable_it_determines() {
         // Well conditioned: no ridge, and the sandwich with meat = bread is the inverse's diagonal.
-        let mut g = vec![2.0, 0.5, 0.5, 1.0];
-        let (v, ridge) = ridged_sandwich(&mut g, &[2.0, 0.5, 0.5, 1.0], 2, &[0, 1]);
+        let g = vec![2.0, 0.5, 0.5, 1.0];
+        let (v, ridge) = ridged_sandwich(&g, &[2.0, 0.5, 0.5, 1.0], 2, &[0, 1]);
         assert_eq!(ridge, 0.0);
         assert!((v[0].unwrap() - 1.0 / 1.75).abs() < 1e-12 && (v[1].unwrap() - 2.0 / 1.75).abs() < 1e-12, "{v:?}");
         // A variable with 10⁻¹⁴ of the largest information forces a ridge of 10⁻⁶; its sandwich through the
         // ridge would be 10⁻¹⁴σ²/10⁻¹² = 0.01σ², a hundred times more precise than the data can make it
         // (σ²/10⁻¹⁴). It is left undetermined; the well-determined variable keeps its variance.
         let (info, sigma2) = (1e-14, 4.0);
-        let mut g = vec![1.0, 0.0, 0.0, info];
+        let g = vec![1.0, 0.0, 0.0, info];
         let meat = [sigma2, 0.0, 0.0, info * sigma2];
-        let (v, ridge) = ridged_sandwich(&mut g, &meat, 2, &[0, 1]);
+        let (v, ridge) = ridged_sandwich(&g, &meat, 2, &[0, 1]);
         assert_eq!(ridge, 1e-6);
         assert!((v[0].unwrap() - sigma2).abs() < 1e-4 * sigma2, "{v:?}");
         assert_eq!(v[1], None);
         // A bread made indefinite by noise (a near-collinear pair) needs a ridge of 10⁻³: the pair keeps
         // variances, a third variable with information 10⁻⁴ (below 10 ridges) does not.
-        let mut g = vec![1.0, 1.0, 0.0, 1.0, 1.0 - 1e-3, 0.0, 0.0, 0.0, 1e-4];
+        let g = vec![1.0, 1.0, 0.0, 1.0, 1.0 - 1e-3, 0.0, 0.0, 0.0, 1e-4];
         let meat = [1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1e-4];
-        let (v, ridge) = ridged_sandwich(&mut g, &meat, 3, &[0, 1, 2]);
+        let (v, ridge) = ridged_sandwich(&g, &meat, 3, &[0, 1, 2]);
         assert_eq!(ridge, 1e-3);
         assert!(v[0].is_some_and(|d| d > 0.0) && v[1].is_some_and(|d| d > 0.0) && v[2].is_none(), "{v:?}");
     }
