@@ -128,6 +128,10 @@ pub mod key {
     /// Model selection: the renders of the second look's tests, with and without the metal lobes (common random
     /// numbers), and of its recheck of the first look's metals against their dielectric lobes.
     pub const SELECT_METAL_TEST: u64 = SELECT + (14 << 20);
+    /// Model selection: object k's Lambert solve that the second look weighs its dielectric lobe against, at
+    /// `SELECT_LAMBERT + k`, and (at `SELECT_LAMBERT_TEST`) the renders of that test (`crate::fit::family`).
+    pub const SELECT_LAMBERT: u64 = SELECT + (15 << 20);
+    pub const SELECT_LAMBERT_TEST: u64 = SELECT + (16 << 20);
     /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
     /// below it, the next field 2^20 above).
     pub const SELECT_STEP_CHECK: u64 = 1 << 19;

@@ -130,6 +130,19 @@ pub fn profile(
     spp: u32,
     key: u64,
 ) -> Result<ProfilePoint, TracerError> {
+    profile_capped(ctx, x, k, r, (samples, spp, key), 1.0)
+}
+
+/// [`profile`] with the specular strength at most `specular_max`: at 0 (and metallic 0 in `x`) the object's
+/// best Lambert surface under the light of `x`.
+pub fn profile_capped(
+    ctx: &Ctx<'_>,
+    x: &[f64],
+    k: usize,
+    r: f64,
+    (samples, spp, key): (&[Sample], u32, u64),
+    specular_max: f64,
+) -> Result<ProfilePoint, TracerError> {
     let mut xr = x.to_vec();
     xr[idx(k, ROUGHNESS)] = r;
     let params = ctx.params(&xr);
@@ -139,7 +152,12 @@ pub fn profile(
     let rows = jacobian::channel_rows(ctx, &params, &pixels, spp, key ^ key::PROFILE_JACOBIAN)?;
     let m = samples.len();
     // Unknowns: ρ_r, ρ_g, ρ_b, s. Rows (pixel j, channel c) at 3j + c.
-    let v0 = [x[idx(k, BASE_COLOR)], x[idx(k, BASE_COLOR + 1)], x[idx(k, BASE_COLOR + 2)], x[idx(k, SPECULAR)]];
+    let v0 = [
+        x[idx(k, BASE_COLOR)],
+        x[idx(k, BASE_COLOR + 1)],
+        x[idx(k, BASE_COLOR + 2)],
+        x[idx(k, SPECULAR)].min(specular_max),
+    ];
     let mut cols = vec![vec![0.0; 3 * m]; 4];
     let mut target = vec![0.0; 3 * m];
     for j in 0..m {
@@ -164,7 +182,7 @@ pub fn profile(
         prox: &zeros,
         anchor: &zeros,
         lo: &zeros,
-        hi: &[1.0; 4],
+        hi: &[1.0, 1.0, 1.0, specular_max],
     };
     linear::solve(&problem, DataLoss::L1, &mut v, IRLS_ITERS);
     let loss_of = |v: &[f64]| {

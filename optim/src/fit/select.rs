@@ -17,7 +17,9 @@
 //! Then a kept emitter that faces sideways may be split at the horizon (`super::horizon`): the closing re-fit
 //! runs with every such emitter split, and each keeps its split only where the held-out pixels its light
 //! reaches pay for it. Last, under that settled light, `super::family` takes a second look at the lobe family
-//! of every object that ended dielectric, and keeps a metal lobe where the held-out pixels ask for one.
+//! of every object that ended dielectric, and keeps a metal lobe where the held-out pixels ask for one; then
+//! every dielectric lobe faces the object's best Lambert surface, which replaces it unless the held-out pixels
+//! ask for the lobe.
 
 use super::emission_solve::{SolveOptions, Support, Unknowns, solve_step_pinned};
 use super::family;
