@@ -152,28 +152,14 @@ fn recheck_lobes(
             Ok(())
         },
     )?;
-    for (k, v) in verdicts.iter().enumerate().filter_map(|(k, v)| v.as_ref().map(|v| (k, v))) {
-        let (gain, t) = paired_t(&v.d);
-        let rel = gain / mean_target.max(f64::MIN_POSITIVE);
-        let lobe =
-            format!("the dielectric lobe (roughness {:.3}, specular {:.3})", x[idx(k, ROUGHNESS)], x[idx(k, SPECULAR)]);
-        let against = format!(
-            "against the best Lambert surface under the settled light (base colour {:.3?}) it lowers the lobe \
-             test's L1 by {:+.2} % of the mean radiance on {} (t = {t:.1})",
-            layout::base_color(&xl, k),
-            100.0 * rel,
-            v.on(),
-        );
-        if v.passes(mean_target) {
-            why[k].push(format!("{lobe} kept: {against}"));
-        } else {
-            layout::copy_material(x, &xl, k);
-            glossy[k] = false;
-            why[k].push(format!(
-                "{lobe} replaced by a diffuse surface: {against} (a lobe needs t > {T_KEEP} and > {:.1} %)",
-                100.0 * MIN_GAIN
-            ));
-        }
+    let replaced = settle(&verdicts, (x, &xl), mean_target, ("a diffuse surface", "a lobe"), why, |k, x, xl| {
+        (
+            format!("the dielectric lobe (roughness {:.3}, specular {:.3})", x[idx(k, ROUGHNESS)], x[idx(k, SPECULAR)]),
+            format!("the best Lambert surface under the settled light (base colour {:.3?})", layout::base_color(xl, k)),
+        )
+    });
+    for k in replaced {
+        glossy[k] = false;
     }
     Ok(())
 }
@@ -305,33 +291,21 @@ fn recheck_metals(
         progress,
         |k, samples, xd| dielectric_lobe(ctx, x, k, 0.0, samples, xd),
     )?;
-    for (k, v) in verdicts.iter().enumerate().filter_map(|(k, v)| v.as_ref().map(|v| (k, v))) {
-        let (gain, t) = paired_t(&v.d);
-        let rel = gain / mean_target.max(f64::MIN_POSITIVE);
-        let metal = format!(
-            "the first look's metal lobe (metallic {:.3}, roughness {:.3})",
-            x[idx(k, METALLIC)],
-            x[idx(k, ROUGHNESS)]
-        );
-        let against = format!(
-            "against the best dielectric lobe under the settled light (roughness {:.3}, specular {:.3}, base colour \
-             {:.3?}) it lowers the lobe test's L1 by {:+.2} % of the mean radiance on {} (t = {t:.1})",
-            xd[idx(k, ROUGHNESS)],
-            xd[idx(k, SPECULAR)],
-            layout::base_color(&xd, k),
-            100.0 * rel,
-            v.on(),
-        );
-        if v.passes(mean_target) {
-            why[k].push(format!("{metal} kept: {against}"));
-        } else {
-            layout::copy_material(x, &xd, k);
-            why[k].push(format!(
-                "{metal} replaced by the dielectric lobe: {against} (a metal needs t > {T_KEEP} and > {:.1} %)",
-                100.0 * MIN_GAIN
-            ));
-        }
-    }
+    settle(&verdicts, (x, &xd), mean_target, ("the dielectric lobe", "a metal"), why, |k, x, xd| {
+        (
+            format!(
+                "the first look's metal lobe (metallic {:.3}, roughness {:.3})",
+                x[idx(k, METALLIC)],
+                x[idx(k, ROUGHNESS)]
+            ),
+            format!(
+                "the best dielectric lobe under the settled light (roughness {:.3}, specular {:.3}, base colour {:.3?})",
+                xd[idx(k, ROUGHNESS)],
+                xd[idx(k, SPECULAR)],
+                layout::base_color(xd, k)
+            ),
+        )
+    });
     Ok(())
 }
 
@@ -375,6 +349,42 @@ fn against_alternatives(
     let verdicts =
         sequential_lobe_test(ctx, s, lobe_test, &tested, (&xa, x), mean_target, test_key, progress, test_name)?;
     Ok((xa, verdicts))
+}
+
+/// The rechecks' verdicts (from [`against_alternatives`]) applied: where the model `x` beats its alternative
+/// `xa` ([`Verdict::passes`]) it stays, else `xa`'s material replaces it. `describe(k, x, xa)` names object k's
+/// model and its alternative; each decision, with the test's figures, is added to `why` (a replaced model as
+/// "replaced by `replaced_by`", and "`needs` needs" the thresholds). Returns the replaced objects.
+fn settle(
+    verdicts: &[Option<Verdict>],
+    (x, xa): (&mut [f64], &[f64]),
+    mean_target: f64,
+    (replaced_by, needs): (&str, &str),
+    why: &mut [Vec<String>],
+    describe: impl Fn(usize, &[f64], &[f64]) -> (String, String),
+) -> Vec<usize> {
+    let mut replaced = Vec::new();
+    for (k, v) in verdicts.iter().enumerate().filter_map(|(k, v)| v.as_ref().map(|v| (k, v))) {
+        let (gain, t) = paired_t(&v.d);
+        let rel = gain / mean_target.max(f64::MIN_POSITIVE);
+        let (model, alternative) = describe(k, x, xa);
+        let against = format!(
+            "against {alternative} it lowers the lobe test's L1 by {:+.2} % of the mean radiance on {} (t = {t:.1})",
+            100.0 * rel,
+            v.on(),
+        );
+        if v.passes(mean_target) {
+            why[k].push(format!("{model} kept: {against}"));
+        } else {
+            layout::copy_material(x, xa, k);
+            replaced.push(k);
+            why[k].push(format!(
+                "{model} replaced by {replaced_by}: {against} ({needs} needs t > {T_KEEP} and > {:.1} %)",
+                100.0 * MIN_GAIN
+            ));
+        }
+    }
+    replaced
 }
 
 /// The dielectric family's best lobe of object `k` under the light of `x`: the roughness search of
