@@ -11,19 +11,7 @@ use optim::fit::step_check::{HALVINGS, check_step};
 use std::path::Path;
 
 fn truth(built: &lab::synth::BuiltScene) -> Vec<f64> {
-    let k_count = built.desc.objects.len();
-    let mut x = layout::initial(k_count);
-    for k in 0..k_count {
-        let (m, e) = (&built.params.materials[k], built.params.emission[k]);
-        for c in 0..3 {
-            x[idx(k, BASE_COLOR + c)] = f64::from(m.base_color[c]);
-            x[idx(k, EMISSION + c)] = f64::from(e[c]);
-        }
-        x[idx(k, layout::ROUGHNESS)] = f64::from(m.roughness);
-        x[idx(k, layout::METALLIC)] = f64::from(m.metallic);
-        x[idx(k, layout::SPECULAR)] = f64::from(m.specular);
-    }
-    x
+    layout::from_params(&built.params)
 }
 
 /// The small room, its photos' pixel sets (every pixel for training) and a solve draw of 1024 of them (32 per

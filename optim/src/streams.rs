@@ -140,6 +140,8 @@ pub mod key {
     /// XORed into a roughness-profile point's key for its Jacobian (the value and its slope must not share
     /// noise).
     pub const PROFILE_JACOBIAN: u64 = 1 << 30;
+    /// XORed into a metal search's key for the renders of its start ([`crate::fit::roughness::ratio_start`]).
+    pub const RATIO_START: u64 = 1 << 29;
 
     /// Per-triangle fit: the key for (round, step), distinct for every render of the stage and disjoint from
     /// the per-object fit's keys (< 4·2^32). Steps: ratio step k of pass p at `p·fit_steps + k` (< 2^16),

@@ -131,6 +131,23 @@ pub fn to_params(x: &[f64]) -> tracer::Params {
     }
 }
 
+/// The parameter vector of the tracer's tables `p` (the inverse of [`to_params`]; a split emitter's ground half
+/// is not read: every other entry starts as [`initial`] has it).
+#[must_use]
+pub fn from_params(p: &tracer::Params) -> Vec<f64> {
+    let mut x = initial(p.materials.len());
+    for (k, (m, e)) in p.materials.iter().zip(&p.emission).enumerate() {
+        for c in 0..3 {
+            x[idx(k, BASE_COLOR + c)] = f64::from(m.base_color[c]);
+            x[idx(k, EMISSION + c)] = f64::from(e[c]);
+        }
+        x[idx(k, ROUGHNESS)] = f64::from(m.roughness);
+        x[idx(k, METALLIC)] = f64::from(m.metallic);
+        x[idx(k, SPECULAR)] = f64::from(m.specular);
+    }
+    x
+}
+
 /// The tracer's gradient table as a flat vector in the same layout.
 #[must_use]
 pub fn flatten_grads(g: &tracer::Grads, objects: usize) -> Vec<f64> {

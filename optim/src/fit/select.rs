@@ -30,7 +30,7 @@ use super::layout::{
 };
 use super::linear::{self, paired_t};
 use super::paired::{
-    FIRST_LOOK, MIN_GAIN, Stop, T_KEEP, cannot_pass, clearly_passes, l1, sequential_lobe_test, target,
+    FIRST_LOOK, MIN_GAIN, Statistic, Stop, T_KEEP, cannot_pass, clearly_passes, l1, sequential_lobe_test, target,
 };
 use super::pixels::{PixelSets, Sample};
 use super::roughness::{self, TRIAL_ROUGHNESS, TRIAL_SPECULAR, lobe_test_samples, profile_samples};
@@ -625,6 +625,7 @@ pub fn choose_models(
         let verdicts = sequential_lobe_test(
             ctx,
             s,
+            Statistic::L1,
             &lobe_test,
             &tested,
             (&x, &xt),
@@ -634,8 +635,7 @@ pub fn choose_models(
             "lobe test",
         )?;
         for (k, v) in verdicts.iter().enumerate().filter_map(|(k, v)| v.as_ref().map(|v| (k, v))) {
-            let (gain, t) = paired_t(&v.d);
-            let rel = gain / mean_target.max(f64::MIN_POSITIVE);
+            let (rel, t) = v.gain(mean_target);
             let on = v.on();
             if v.passes(mean_target) {
                 glossy[k] = true;

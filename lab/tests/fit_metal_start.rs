@@ -1,0 +1,60 @@
+//! Where the metal family's profile solves start (`optim::fit::roughness::ratio_start`), on
+//! `data-fixtures/scenes/metal-lamp.toml`'s metal box (base colour 0.90 / 0.88 / 0.85, roughness 0.3, metallic 1):
+//! from a dark, dielectric-like base colour of 0.3, the ratio steps must land within 0.05 of the truth per
+//! channel, and the profile solve started there must stay within it. The profile's unbiased RMS error
+//! (`roughness::profile_unbiased`) must prefer the true colour to the colour a solve from 0.3 reaches on the
+//! corpus house's metals (0.6× the truth).
+
+use optim::fit::jacobian::Ctx;
+use optim::fit::layout::{self, BASE_COLOR, ROUGHNESS, idx};
+use optim::fit::pixels::{self, Sample};
+use optim::fit::roughness::{self, ratio_start};
+use optim::fit::samples::SampleCounter;
+use std::path::Path;
+
+#[test]
+fn the_ratio_start_finds_a_metal_base_colour_from_a_dark_one() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/metal-lamp.toml");
+    let built = lab::synth::build(lab::synth::load_desc(&path).unwrap(), &path).unwrap();
+    let images = lab::synth::photos(&built).unwrap();
+    let k_count = built.desc.objects.len();
+    let metal = built.desc.objects.iter().position(|o| o.label == "metal box").expect("the fixture's metal box");
+    let x = layout::from_params(&built.params);
+    let truth = layout::base_color(&x, metal);
+    let r_true = x[idx(metal, ROUGHNESS)];
+    let sets = pixels::collect(&built.scene, &built.cameras, &images, k_count, 0.0, usize::MAX, usize::MAX, 0);
+    let samples: Vec<Sample> = sets.train.iter().filter(|t| t.object == Some(metal as u32)).copied().collect();
+    assert!(samples.len() > 1000, "the metal box has {} pixels", samples.len());
+    let counter = SampleCounter::default();
+    let ctx = Ctx {
+        scene: &built.scene,
+        cameras: &built.cameras,
+        settings: &built.settings,
+        seed: 5,
+        samples: &counter,
+        split: &layout::NO_SPLIT,
+    };
+    let (spp, key) = (64, 7);
+    let with_colour = |rho: [f64; 3]| {
+        let mut xc = x.clone();
+        for c in 0..3 {
+            xc[idx(metal, BASE_COLOR + c)] = rho[c];
+        }
+        xc
+    };
+    let start = ratio_start(&ctx, &with_colour([0.3; 3]), metal, r_true, (&samples, spp, key)).unwrap();
+    let solved = roughness::profile(&ctx, &with_colour(start), metal, r_true, &samples, spp, key).unwrap();
+    eprintln!("truth {truth:.3?}, ratio start {start:.3?}, profile solve from it {:.3?}", solved.base_color);
+    for c in 0..3 {
+        assert!((start[c] - truth[c]).abs() <= 0.05, "ratio start {start:.3?} against the truth {truth:.3?}");
+        assert!((solved.base_color[c] - truth[c]).abs() <= 0.05, "solve {:.3?} against {truth:.3?}", solved.base_color);
+    }
+    let rms = |rho: [f64; 3]| {
+        let p = roughness::profile_unbiased(&ctx, &with_colour(rho), metal, r_true, (&samples, spp, key)).unwrap();
+        p.rms.expect("an unbiased profile has an RMS error")
+    };
+    let dim = truth.map(|v| 0.6 * v);
+    let (at_truth, at_dim) = (rms(truth), rms(dim));
+    eprintln!("unbiased profile RMS: {at_truth:.5} at the truth, {at_dim:.5} at 0.6× the truth");
+    assert!(at_truth < at_dim);
+}
