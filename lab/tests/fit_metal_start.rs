@@ -3,7 +3,8 @@
 //! from a dark, dielectric-like base colour of 0.3, the ratio steps must land within 0.05 of the truth per
 //! channel, and the profile solve started there must stay within it. The profile's unbiased RMS error
 //! (`roughness::profile_unbiased`) must prefer the true colour to the colour a solve from 0.3 reaches on the
-//! corpus house's metals (0.6× the truth).
+//! corpus house's metals (0.6× the truth). Measured: the ratio start 0.903 / 0.883 / 0.852, the solve from it
+//! 0.921 / 0.901 / 0.870, the unbiased RMS error 0.0064 at the truth and 0.0119 at 0.6× (all its pixels, 64 paths).
 
 use optim::fit::jacobian::Ctx;
 use optim::fit::layout::{self, BASE_COLOR, ROUGHNESS, idx};
