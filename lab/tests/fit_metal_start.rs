@@ -6,7 +6,6 @@
 //! corpus house's metals (0.6× the truth). Measured: the ratio start 0.903 / 0.883 / 0.852, the solve from it
 //! 0.921 / 0.901 / 0.870, the unbiased RMS error 0.0064 at the truth and 0.0119 at 0.6× (all its pixels, 64 paths).
 
-use optim::fit::jacobian::Ctx;
 use optim::fit::layout::{self, BASE_COLOR, ROUGHNESS, idx};
 use optim::fit::pixels::{self, Sample};
 use optim::fit::roughness::{self, ratio_start};
@@ -27,14 +26,7 @@ fn the_ratio_start_finds_a_metal_base_colour_from_a_dark_one() {
     let samples: Vec<Sample> = sets.train.iter().filter(|t| t.object == Some(metal as u32)).copied().collect();
     assert!(samples.len() > 1000, "the metal box has {} pixels", samples.len());
     let counter = SampleCounter::default();
-    let ctx = Ctx {
-        scene: &built.scene,
-        cameras: &built.cameras,
-        settings: &built.settings,
-        seed: 5,
-        samples: &counter,
-        split: &layout::NO_SPLIT,
-    };
+    let ctx = built.fit_context(5, &counter);
     let (spp, key) = (64, 7);
     let with_colour = |rho: [f64; 3]| {
         let mut xc = x.clone();

@@ -28,14 +28,7 @@ fn small_room() -> (lab::synth::BuiltScene, pixels::PixelSets, pixels::WeightedD
 
 /// The fit's context on the built scene, seed 3, counting into `counter`.
 fn context<'a>(built: &'a lab::synth::BuiltScene, counter: &'a SampleCounter) -> Ctx<'a> {
-    Ctx {
-        scene: &built.scene,
-        cameras: &built.cameras,
-        settings: &built.settings,
-        seed: 3,
-        samples: counter,
-        split: &optim::fit::layout::NO_SPLIT,
-    }
+    built.fit_context(3, counter)
 }
 
 #[test]

@@ -62,6 +62,26 @@ pub struct BuiltScene {
     pub settings: tracer::TracerSettings,
 }
 
+impl BuiltScene {
+    /// The per-object fit's context on this scene with `seed`, counting its paths into `counter` (no emitter
+    /// split at the horizon).
+    #[must_use]
+    pub fn fit_context<'a>(
+        &'a self,
+        seed: u64,
+        counter: &'a optim::fit::samples::SampleCounter,
+    ) -> optim::fit::jacobian::Ctx<'a> {
+        optim::fit::jacobian::Ctx {
+            scene: &self.scene,
+            cameras: &self.cameras,
+            settings: &self.settings,
+            seed,
+            samples: counter,
+            split: &optim::fit::layout::NO_SPLIT,
+        }
+    }
+}
+
 /// Reads and validates a description file.
 pub fn load_desc(path: &Path) -> Result<SceneDesc, SynthError> {
     let text = std::fs::read_to_string(path).map_err(|e| SynthError::Io { path: path.to_path_buf(), source: e })?;

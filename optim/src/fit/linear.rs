@@ -366,6 +366,13 @@ pub fn stratified_mean_se(d: &[f64], in_a: &[bool], w_a: f64, w_b: f64) -> (f64,
     (mean, var.sqrt())
 }
 
+/// The root of an unbiased mean square (a mean of products of two independent residuals): 0 where noise leaves
+/// the estimate negative.
+#[must_use]
+pub fn root_mean_square(mean_square: f64) -> f64 {
+    mean_square.max(0.0).sqrt()
+}
+
 /// Mean and standard error of the mean of `d` (the paired test's; 0 for fewer than 2 values).
 #[must_use]
 pub fn mean_se(d: &[f64]) -> (f64, f64) {

@@ -179,24 +179,24 @@ pub(super) fn differences(
     (d_l1, Some(Squared { d, mean_squares: (sum_d / per_channel, sum_t / per_channel) }))
 }
 
-/// The root of a mean unbiased squared error (0 where noise leaves the estimate negative).
-fn rms(mean_square: f64) -> f64 {
-    mean_square.max(0.0).sqrt()
-}
-
 impl Squared {
     /// The alternative's gain, the drop of the RMS error per channel as a fraction of the per-channel mean
     /// radiance (`mean_target` is summed over the channels), in the radiance's units as the L1 gain is, so
     /// that [`MIN_GAIN`] means the same for both; and the paired t-statistic.
     fn gain(&self, mean_target: f64) -> (f64, f64) {
         let (a, b) = self.mean_squares;
-        ((rms(a) - rms(b)) / (mean_target / 3.0).max(f64::MIN_POSITIVE), paired_t(&self.d).1)
+        (
+            (linear::root_mean_square(a) - linear::root_mean_square(b)) / (mean_target / 3.0).max(f64::MIN_POSITIVE),
+            paired_t(&self.d).1,
+        )
     }
 
     /// [`MIN_GAIN`] of `mean_target` in the differences' units, at the models' current mean squares
     /// (a² − b² = (a − b)(a + b)).
     fn min_difference(&self, mean_target: f64) -> f64 {
-        MIN_GAIN * mean_target * (rms(self.mean_squares.0) + rms(self.mean_squares.1))
+        MIN_GAIN
+            * mean_target
+            * (linear::root_mean_square(self.mean_squares.0) + linear::root_mean_square(self.mean_squares.1))
     }
 }
 
@@ -311,6 +311,7 @@ pub(super) fn sequential_lobe_test(
             open.iter().flat_map(|&k| rows_of[k][looked[k]..rows_of[k].len().min(n_look)].iter().copied()).collect();
         let pix: Vec<PixelRef> = new_rows.iter().map(|&j| lobe_test[j].pixel).collect();
         for (h, &(spp, key)) in halves.iter().enumerate() {
+            let half = if halves.len() > 1 { format!(", render {}/{}", h + 1, halves.len()) } else { String::new() };
             let (a, b) = paired_renders(
                 ctx,
                 (&params_d, &params_t),
@@ -318,7 +319,11 @@ pub(super) fn sequential_lobe_test(
                 spp,
                 key,
                 progress,
-                &format!("model selection: {name}, look {look} ({} objects, {} pixels), block", open.len(), pix.len()),
+                &format!(
+                    "model selection: {name}, look {look} ({} objects, {} pixels){half}, block",
+                    open.len(),
+                    pix.len()
+                ),
             )?;
             for (i, &j) in new_rows.iter().enumerate() {
                 (i_d[j][h], i_t[j][h]) = (a[i], b[i]);
@@ -350,7 +355,8 @@ pub(super) fn sequential_lobe_test(
         n_look *= 2;
         look += 1;
     }
-    tracing::debug!(name, rendered, all = lobe_test.len(), "paired test pixels rendered (two renders each)");
+    let renders = 2 * halves.len();
+    tracing::debug!(name, rendered, all = lobe_test.len(), renders, "paired test pixels rendered (renders each)");
     Ok((0..k_count)
         .map(|k| {
             tested[k].then(|| {

@@ -255,7 +255,7 @@ fn profile_at(
                     (fitted - half_gap) * (fitted + half_gap)
                 })
                 .sum();
-            (sum / (3 * m.max(1)) as f64).max(0.0).sqrt()
+            linear::root_mean_square(sum / (3 * m.max(1)) as f64)
         }),
     })
 }
@@ -285,11 +285,11 @@ pub fn ratio_start(
         xr[idx(k, BASE_COLOR + c)] = RATIO_FROM;
     }
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
+    let photos: [f64; 3] = std::array::from_fn(|c| samples.iter().map(|t| f64::from(t.target[c])).sum());
     // Every step with the same random numbers: the steps iterate towards the fixed point of one estimate.
     for _ in 0..RATIO_STEPS {
         let values = ctx.render(&ctx.params(&xr), &pixels, spp, key ^ key::RATIO_START)?;
-        for c in 0..3 {
-            let photo: f64 = samples.iter().map(|t| f64::from(t.target[c])).sum();
+        for (c, &photo) in photos.iter().enumerate() {
             let render: f64 = values.iter().map(|v| f64::from(v[c])).sum();
             let rho = &mut xr[idx(k, BASE_COLOR + c)];
             // A channel the render leaves dark carries no information on its base colour: it stays.
