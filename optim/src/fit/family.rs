@@ -103,7 +103,16 @@ pub(super) fn second_look(
             probe = probe.min(unbiased(&at_metal, r)?);
         }
         probed[k] = Some((current, probe));
-        if probe > current - roughness::FLAT_PROFILE * roughness::mean_target(&samples) {
+        let margin = roughness::FLAT_PROFILE * roughness::mean_target(&samples);
+        if probe > current - margin {
+            why[k].push(format!(
+                "under the settled light, a metal lobe not searched: at the probes (roughness {:?}, base colour from \
+                 {start:.3?}) its profile RMS error is {probe:.4} against {current:.4} for the model on {} pixels \
+                 (needs to be lower by {margin:.4}, {:.1} % of their mean radiance)",
+                METAL_PROBES,
+                samples.len(),
+                100.0 * roughness::FLAT_PROFILE
+            ));
             continue;
         }
         let (best, evals) = roughness::search_up_to(ctx, &at_metal, k, &samples, spp, key, METAL_ROUGHEST)?;
