@@ -356,7 +356,13 @@ pub(super) fn sequential_lobe_test(
         look += 1;
     }
     let renders = 2 * halves.len();
-    tracing::debug!(name, rendered, all = lobe_test.len(), renders, "paired test pixels rendered (renders each)");
+    tracing::debug!(
+        name,
+        rendered,
+        all = lobe_test.len(),
+        renders,
+        "paired test pixels rendered, each `renders` times"
+    );
     Ok((0..k_count)
         .map(|k| {
             tested[k].then(|| {
