@@ -61,3 +61,14 @@ pub fn check_stop(progress: &dyn Progress) -> Result<(), Stopped> {
 pub struct NoProgress;
 
 impl Progress for NoProgress {}
+
+/// Passes on only the stop requests of the progress it wraps: for the many short renders within one step of a
+/// phase (an object's fits in the lobe family look), whose own phases would replace the caller's and its ETA.
+#[derive(Clone, Copy)]
+pub(crate) struct Muted<'a>(pub &'a dyn Progress);
+
+impl Progress for Muted<'_> {
+    fn stop_requested(&self) -> bool {
+        self.0.stop_requested()
+    }
+}

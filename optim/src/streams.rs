@@ -72,6 +72,9 @@ pub mod draw {
     /// Per-triangle fit: which pixels a triangle keeps when it has more than its budget (keyed by the pixel;
     /// `crate::triangle::pixels::collect`).
     pub const TRIANGLE_PIXELS: u64 = 0x7270;
+    /// Per-triangle fit: the order in which the lobe family look takes an object's pixels (keyed by the pixel
+    /// and the round; `crate::triangle::family`).
+    pub const TRIANGLE_FAMILY: u64 = 0x7266;
 }
 
 /// Key spaces of the tracer's `iteration` argument. The per-object fit's keys lie below 4·2^32, the
@@ -163,6 +166,19 @@ pub mod key {
     /// The render of the final per-triangle model behind the sub-triangle albedo detail
     /// ([`crate::triangle::detail`]): above every [`triangle`] key (< 17·2^32).
     pub const TRIANGLE_DETAIL: u64 = 17 << 32;
+    /// The lobe family look ([`crate::triangle::family`]): the key of step `step` of alternative `alternative`
+    /// of object `object` ([`TRIANGLE_FAMILY_TEST`] for the test's renders), above every [`triangle`] key and
+    /// [`TRIANGLE_DETAIL`] (< 19·2^32): 20 bits of object, 4 of alternative, 8 of step.
+    #[must_use]
+    pub fn triangle_family(object: u32, alternative: u32, step: u32) -> u64 {
+        (18u64 << 32)
+            | (u64::from(object & 0xf_ffff) << 12)
+            | (u64::from(alternative & 0xf) << 8)
+            | u64::from(step & 0xff)
+    }
+    /// The alternative field of [`triangle_family`] for the renders of the look's test (steps 0 and 1: its two
+    /// half-path renders).
+    pub const TRIANGLE_FAMILY_TEST: u32 = 0xf;
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 mod common;
 
 use optim::triangle::TriangleSettings;
-use optim::triangle::{RoundInputs, pixels, ratio, run_rounds, split};
+use optim::triangle::{RoundInputs, family, pixels, ratio, run_rounds, split};
 use workflow::config::TriangleConfig;
 
 #[test]
@@ -38,6 +38,13 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     eprintln!("marked per round: {marked:?}");
     assert!(marked.iter().all(|&m| m == 0), "false splits on a uniform scene: {marked:?}");
     assert_eq!(out.triangles, start.triangles);
+    // The lobe family look of the final round switched no object: every one is in its true family (Lambert)
+    // already. Which objects it looked at is checked below, with the pixels.
+    let families = &out.log.last().unwrap().families;
+    for f in families {
+        eprintln!("lobe family look: {f:?}");
+    }
+    assert!(families.iter().all(|f| !f.switched), "{families:?}");
 
     let mut worst = 0.0f32;
     let mut sum = 0.0f64;
@@ -78,6 +85,14 @@ fn every_triangle_of_a_uniform_object_keeps_the_object_value() {
     let n = state.triangles.len();
     let pix = pixels::collect(&scene, &built.cameras, &images, n, config.pixels_per_triangle as usize, config.seed);
     let pix = pix.samples;
+    // The look looked at every non-emitting object with two halves of pixels (all of them on this scene; the
+    // ceiling, in 84, the fewest), and at no other.
+    let rows = family::object_rows(&pix, &state.face_object, k, config.family_pixels as usize, config.seed, 0);
+    let lookable: Vec<usize> = (0..k)
+        .filter(|&o| built.params.emission[o].max_element() <= 0.0 && rows[o].len() / 2 >= family::MIN_HALF)
+        .collect();
+    assert_eq!(lookable.len() + 1, k, "{lookable:?}");
+    assert_eq!(families.iter().map(|f| f.object).collect::<Vec<_>>(), lookable);
     let fitted = ratio::fit_round(&inputs, &scene, &pix, &mut state, config.rounds + 1, &optim::NoProgress).unwrap();
     let ev = split::evidence(state.triangles.len(), &pix, &fitted);
     let p: Vec<f64> = ev.iter().zip(&fitted.free).filter(|(_, f)| **f).filter_map(|(e, _)| e.map(|e| e.p)).collect();

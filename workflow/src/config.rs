@@ -322,8 +322,12 @@ pub struct TriangleConfig {
     /// A light cycle stops before `light_steps` once every emitter's averaged emission has at most this
     /// relative standard error.
     pub light_precision: f64,
-    /// Budget: ratio steps of the pass after each light cycle of the last round's light re-solve.
+    /// Budget: ratio steps of the pass after each light cycle of the last round's light re-solve, and of the
+    /// pass after the lobe family look when it switched some object.
     pub light_fit_steps: u32,
+    /// Budget: pixels per object of the lobe family look after the last round's light re-solve (half of them,
+    /// at most 512, fit both lobe families, the rest test); 0 = no look.
+    pub family_pixels: u32,
     /// Seed of the stage's renders.
     pub seed: u64,
 }
@@ -361,6 +365,11 @@ impl Default for TriangleConfig {
             // refused the re-solve at both seeds (docs/optim/design-measurements.md, "Ratio steps after a
             // light cycle").
             light_fit_steps: 3,
+            // The fits take at most 512 and the test the rest: with 512 test pixels the corpus house's only
+            // switch was a small metal sphere; with up to 7680 a metal box passed too and a diffuse box the
+            // object stage made metal went back (docs/optim/design-measurements.md, "The lobe family look on
+            // the per-triangle scene"). The test's sequential looks stop most objects long before.
+            family_pixels: 8192,
             seed: 0,
         }
     }

@@ -249,9 +249,18 @@ fn validate(c: &Config) -> Result<(), Invalid> {
     )?;
     non_negative("triangle.light_precision", g.light_precision)?;
     // The ratio steps of a round's passes (`fit_steps`, then `light_fit_steps` after each of the two light
-    // cycles) are numbered on in one key field below the 2^16 of the Adam iterations.
+    // cycles and after the lobe family look) are numbered on in one key field below the 2^16 of the Adam
+    // iterations.
     rule(g.fit_steps <= 10_000, "triangle.fit_steps", "at most 10000", g.fit_steps)?;
     rule((1..=10_000).contains(&g.light_fit_steps), "triangle.light_fit_steps", "in [1, 10000]", g.light_fit_steps)?;
+    // Fewer pixels than two halves of the look's minimum look at no object at all: 0 says so plainly.
+    let fewest = 2 * optim::triangle::family::MIN_HALF as u32;
+    rule(
+        g.family_pixels == 0 || g.family_pixels >= fewest,
+        "triangle.family_pixels",
+        &format!("0 or at least {fewest}"),
+        g.family_pixels,
+    )?;
 
     let e = &c.export;
     at_least_one("export.report_spp", e.report_spp)?;
@@ -329,6 +338,8 @@ mod tests {
             ("triangle.light_precision=-0.01", "triangle.light_precision"),
             ("triangle.light_fit_steps=0", "triangle.light_fit_steps"),
             ("triangle.fit_steps=10001", "triangle.fit_steps"),
+            // Two halves of fewer than the look's minimum each.
+            ("triangle.family_pixels=63", "triangle.family_pixels"),
         ] {
             let e = Plan::load(&cfg, &[set.to_owned()]).unwrap_err();
             assert!(e.to_string().contains(&format!("`{key}`")), "{e}");
@@ -339,6 +350,8 @@ mod tests {
             "triangle.light_steps=4",
             "triangle.light_precision=0",
             "triangle.light_fit_steps=1",
+            "triangle.family_pixels=0",
+            "triangle.family_pixels=64",
             "triangle.fit_steps=0",
         ] {
             Plan::load(&cfg, &[set.to_owned()]).unwrap_or_else(|e| panic!("{set}: {e}"));

@@ -1,7 +1,8 @@
 //! What model selection's paired held-out comparisons share (`super::select`'s lobe and emission tests,
-//! `super::family`'s metal test, `super::horizon`'s split test): the thresholds a term must pass, the two
-//! renders of the same pixels with common random numbers that each test compares, the sequential looks that
-//! stop a test early when it cannot pass or clearly passes, and the per-object lobe test built on them.
+//! `super::family`'s metal test, `super::horizon`'s split test, and the per-triangle stage's lobe family look,
+//! `crate::triangle::family`): the thresholds a term must pass, the two renders of the same pixels with common
+//! random numbers that each test compares, the sequential looks that stop a test early when it cannot pass or
+//! clearly passes, and the per-object lobe test built on them.
 
 use super::jacobian::Ctx;
 use super::linear::{self, paired_t};
@@ -14,11 +15,11 @@ use tracer::PixelRef;
 
 /// A term is kept when the paired t-statistic of its held-out improvement exceeds 3 (one-sided p ≈ 0.1 %:
 /// with tens of objects, a spurious acceptance is unlikely)…
-pub(super) const T_KEEP: f64 = 3.0;
+pub(crate) const T_KEEP: f64 = 3.0;
 /// …and the improvement is at least 0.5 % of the mean held-out |target| (a statistically clear but practically
 /// invisible gain does not justify extra parameters; on the glossy fixture the floor's lobe gains 4.2 % and
 /// the box's 12 %, while on it and on the default scene every diffuse wall's best lobe made the residual worse).
-pub(super) const MIN_GAIN: f64 = 0.005;
+pub(crate) const MIN_GAIN: f64 = 0.005;
 
 /// Two renders of the same pixels with the same random numbers (`key`), in blocks of [`RENDER_BLOCK`]
 /// pixels (a house's lobe test renders ~3·10⁵ pixels at `holdout_spp`, minutes per render), one progress step per block and arm in a phase `phase`. Random numbers are keyed by the pixel, so
@@ -57,7 +58,7 @@ pub(super) fn target(s: &Sample) -> [f64; 3] {
 
 /// Why a sequential test stopped before its last look.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Stop {
+pub(crate) enum Stop {
     /// [`cannot_pass`].
     CannotPass,
     /// [`clearly_passes`].
@@ -79,7 +80,7 @@ impl Stop {
 /// standard error of a wall's mean paired difference well under the 0.5 % of [`MIN_GAIN`] (a diffuse wall's
 /// best lobe changes its L1 by 0.1–0.3 %, docs/optim/design-measurements.md), so most walls stop at the first
 /// look.
-pub(super) const FIRST_LOOK: usize = 256;
+pub(crate) const FIRST_LOOK: usize = 256;
 
 /// Whether a test can stop after `n` of its `n_full` pixels because on all of them it could not plausibly
 /// pass: the upper confidence bound of the mean gain, `mean + T_KEEP · se` (one-sided 0.1 %), is below what a
@@ -110,7 +111,7 @@ pub(super) fn clearly_passes(mean: f64, se: f64, n: usize, n_full: usize, min_ga
 
 /// What a paired held-out test compares per pixel, between two models rendered with common random numbers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Statistic {
+pub(crate) enum Statistic {
     /// The L1 distance to the photo of one render per model at `holdout_spp` paths. Its expectation is
     /// inflated by the render's Monte Carlo noise, the more so the brighter and sharper a lobe (by a third on
     /// a metal of the corpus house at 64 paths): a sharp, bright lobe is judged against a handicap.
@@ -130,19 +131,19 @@ pub(super) enum Statistic {
 /// The squared-error half of a [`Statistic::L1OrSquaredError`] comparison: per pixel, the first model's
 /// unbiased squared error minus the alternative's (summed over the channels), and each model's mean
 /// per-channel unbiased squared error.
-pub(super) struct Squared {
-    pub(super) d: Vec<f64>,
-    pub(super) mean_squares: (f64, f64),
+pub(crate) struct Squared {
+    pub(crate) d: Vec<f64>,
+    pub(crate) mean_squares: (f64, f64),
 }
 
-/// The paired differences of a test on `rows` of `test` (per pixel, summed over the channels; positive where
-/// the alternative `i_t` fits better than `i_d`): the L1 differences, of the first render for
-/// [`Statistic::L1`] and of the two renders' mean for [`Statistic::L1OrSquaredError`], and for the latter
-/// the squared errors. `i_d[j]` and `i_t[j]` hold the two renders of row j (the second unused by
+/// The paired differences of a test on `rows` (per pixel, summed over the channels; positive where the
+/// alternative `i_t` fits better than `i_d`): the L1 differences, of the first render for [`Statistic::L1`]
+/// and of the two renders' mean for [`Statistic::L1OrSquaredError`], and for the latter the squared errors.
+/// `target(j)` is row j's photo value, and `i_d[j]` and `i_t[j]` hold its two renders (the second unused by
 /// [`Statistic::L1`]).
-pub(super) fn differences(
+pub(crate) fn differences(
     statistic: Statistic,
-    test: &[Sample],
+    target: impl Fn(usize) -> [f64; 3],
     rows: &[usize],
     i_d: &[[glam::Vec3; 2]],
     i_t: &[[glam::Vec3; 2]],
@@ -154,7 +155,7 @@ pub(super) fn differences(
     let d_l1 = rows
         .iter()
         .map(|&j| {
-            let t = target(&test[j]);
+            let t = target(j);
             l1(t, value(&i_d[j])) - l1(t, value(&i_t[j]))
         })
         .collect();
@@ -168,7 +169,7 @@ pub(super) fn differences(
     let d = rows
         .iter()
         .map(|&j| {
-            let t = target(&test[j]);
+            let t = target(j);
             let (qd, qt) = (product(t, &i_d[j]), product(t, &i_t[j]));
             sum_d += qd;
             sum_t += qt;
@@ -183,7 +184,7 @@ impl Squared {
     /// The alternative's gain, the drop of the RMS error per channel as a fraction of the per-channel mean
     /// radiance (`mean_target` is summed over the channels), in the radiance's units as the L1 gain is, so
     /// that [`MIN_GAIN`] means the same for both; and the paired t-statistic.
-    fn gain(&self, mean_target: f64) -> (f64, f64) {
+    pub(crate) fn gain(&self, mean_target: f64) -> (f64, f64) {
         let (a, b) = self.mean_squares;
         (
             (linear::root_mean_square(a) - linear::root_mean_square(b)) / (mean_target / 3.0).max(f64::MIN_POSITIVE),
@@ -203,11 +204,11 @@ impl Squared {
 /// One object's paired held-out comparison in [`sequential_lobe_test`]: its L1 differences (the first model's
 /// L1 minus the alternative's, per pixel looked at), its squared errors for [`Statistic::L1OrSquaredError`],
 /// how many pixels it had, and why it stopped early.
-pub(super) struct Verdict {
-    pub(super) d: Vec<f64>,
-    pub(super) squared: Option<Squared>,
-    pub(super) n_full: usize,
-    pub(super) stopped: Option<Stop>,
+pub(crate) struct Verdict {
+    pub(crate) d: Vec<f64>,
+    pub(crate) squared: Option<Squared>,
+    pub(crate) n_full: usize,
+    pub(crate) stopped: Option<Stop>,
 }
 
 /// Whether a gain `rel` (a fraction of the mean radiance) at paired t-statistic `t` keeps a term.
@@ -218,7 +219,7 @@ fn pays((rel, t): (f64, f64)) -> bool {
 impl Verdict {
     /// The alternative's L1 gain as a fraction of the pixels' mean radiance `mean_target` (summed over the
     /// channels as the differences are), and the paired t-statistic.
-    pub(super) fn gain(&self, mean_target: f64) -> (f64, f64) {
+    pub(crate) fn gain(&self, mean_target: f64) -> (f64, f64) {
         let (mean, t) = paired_t(&self.d);
         (mean / mean_target.max(f64::MIN_POSITIVE), t)
     }
@@ -226,14 +227,14 @@ impl Verdict {
     /// Whether the alternative is kept: t > [`T_KEEP`] and a gain above [`MIN_GAIN`] of `mean_target`, on the
     /// L1 or (for [`Statistic::L1OrSquaredError`]) on the squared error, unless the test stopped because it
     /// could not pass.
-    pub(super) fn passes(&self, mean_target: f64) -> bool {
+    pub(crate) fn passes(&self, mean_target: f64) -> bool {
         self.stopped != Some(Stop::CannotPass)
             && (pays(self.gain(mean_target)) || self.squared.as_ref().is_some_and(|q| pays(q.gain(mean_target))))
     }
 
     /// The test's figures, for a `why`: "L1 by +x % (t = a)" and, with squared errors, "and its RMS error by
     /// +y % (t = b)", the gains as percentages of the mean radiance.
-    pub(super) fn figures(&self, mean_target: f64) -> String {
+    pub(crate) fn figures(&self, mean_target: f64) -> String {
         let (rel, t) = self.gain(mean_target);
         let l1 = format!("L1 by {:+.2} % (t = {t:.1})", 100.0 * rel);
         match &self.squared {
@@ -252,6 +253,24 @@ impl Verdict {
             None => format!("{} pixels", self.d.len()),
         }
     }
+}
+
+/// Whether a sequential test stops after the differences `d` (and `squared`) of the pixels it has looked at,
+/// of `n_full`: where neither statistic can pass ([`cannot_pass`]) or either clearly passes
+/// ([`clearly_passes`]), each against its least passing mean difference ([`MIN_GAIN`] of `mean_target`).
+pub(crate) fn early_stop(d: &[f64], squared: Option<&Squared>, n_full: usize, mean_target: f64) -> Option<Stop> {
+    // Each statistic's mean, standard error and least passing mean difference.
+    let mut arms = vec![(linear::mean_se(d), MIN_GAIN * mean_target)];
+    if let Some(q) = squared {
+        arms.push((linear::mean_se(&q.d), q.min_difference(mean_target)));
+    }
+    if arms.iter().all(|&((mean, se), min)| cannot_pass(mean, se, d.len(), n_full, min)) {
+        return Some(Stop::CannotPass);
+    }
+    if arms.iter().any(|&((mean, se), min)| clearly_passes(mean, se, d.len(), n_full, min)) {
+        return Some(Stop::ClearlyPasses);
+    }
+    None
 }
 
 /// Paired held-out test of an alternative model `xt` against `x` for every object with `tested[k]`, on that
@@ -335,22 +354,9 @@ pub(super) fn sequential_lobe_test(
             if looked[k] == rows_of[k].len() {
                 return false;
             }
-            let (d, squared) = differences(statistic, lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
-            let n_full = rows_of[k].len();
-            // Each statistic's mean, standard error and least passing mean difference.
-            let mut arms = vec![(linear::mean_se(&d), MIN_GAIN * mean_target)];
-            if let Some(q) = &squared {
-                arms.push((linear::mean_se(&q.d), q.min_difference(mean_target)));
-            }
-            if arms.iter().all(|&((mean, se), min)| cannot_pass(mean, se, d.len(), n_full, min)) {
-                stopped[k] = Some(Stop::CannotPass);
-                return false;
-            }
-            if arms.iter().any(|&((mean, se), min)| clearly_passes(mean, se, d.len(), n_full, min)) {
-                stopped[k] = Some(Stop::ClearlyPasses);
-                return false;
-            }
-            true
+            let (d, squared) = differences(statistic, |j| target(&lobe_test[j]), &rows_of[k][..looked[k]], &i_d, &i_t);
+            stopped[k] = early_stop(&d, squared.as_ref(), rows_of[k].len(), mean_target);
+            stopped[k].is_none()
         });
         n_look *= 2;
         look += 1;
@@ -366,7 +372,8 @@ pub(super) fn sequential_lobe_test(
     Ok((0..k_count)
         .map(|k| {
             tested[k].then(|| {
-                let (d, squared) = differences(statistic, lobe_test, &rows_of[k][..looked[k]], &i_d, &i_t);
+                let (d, squared) =
+                    differences(statistic, |j| target(&lobe_test[j]), &rows_of[k][..looked[k]], &i_d, &i_t);
                 Verdict { d, squared, n_full: rows_of[k].len(), stopped: stopped[k] }
             })
         })
@@ -399,7 +406,7 @@ mod tests {
         let i_d: Vec<_> = (0..n).map(|i| render(i, (mean_d, noise_d), 0)).collect();
         let i_t: Vec<_> = (0..n).map(|i| render(i, (mean_t, noise_t), 2)).collect();
         let rows: Vec<usize> = (0..n).collect();
-        let (d, squared) = differences(Statistic::L1OrSquaredError, &test, &rows, &i_d, &i_t);
+        let (d, squared) = differences(Statistic::L1OrSquaredError, |j| target(&test[j]), &rows, &i_d, &i_t);
         Verdict { d, squared, n_full: n, stopped: None }
     }
 

@@ -70,6 +70,13 @@
 //!   [`light::MAX_LOSS_GROWTH`] times the fit's (a change confined to a few pixels is never significant,
 //!   however large), the light and the albedos go back to the round's fit. The gate above tests whether the
 //!   light moved, not whether it moved the right way.
+//! - **Lobe family look** ([`family`], after the light, `family_pixels` > 0): the object stage chose each
+//!   object's lobe family with one colour per object for its neighbours, whose misfit a wrong family can
+//!   absorb; with the neighbours now resolved by place every non-emitting object is tried in the other family
+//!   (a dielectric as a metal, a metal as a Lambert surface): both families fitted with one colour for the
+//!   object by ratio steps on up to 512 of its pixels, and the object switched where the rest, up to
+//!   `family_pixels`, prefer the other family (the object stage's paired metal test, in sequential looks); a
+//!   pass of `light_fit_steps` ratio steps follows the switches. The round's log records every object's look.
 //! - **Shrinkage to the object** ([`ratio::shrink_to_object`]), before the smoothness solve at every step: no
 //!   per-triangle parameter the evidence does not call for. Per object, its value m is the object-level ratio
 //!   update ΣT/Σ(R/ρ) over its pixels that see it alone (footprint on its triangles only, whichever of them;
@@ -114,6 +121,7 @@
 
 pub mod adam;
 pub mod detail;
+pub mod family;
 pub mod light;
 pub mod pixels;
 pub mod ratio;
@@ -169,6 +177,41 @@ pub struct RoundRecord {
     /// results written before the emission was re-solved.
     #[serde(default)]
     pub emission: Vec<Vec3>,
+    /// The lobe family look of the final round ([`family`]), one entry per object looked at; empty in other
+    /// rounds, with the look off, and in results written before it.
+    #[serde(default)]
+    pub families: Vec<FamilyRecord>,
+}
+
+/// One object's lobe family look ([`family::Look`]), as the result records it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FamilyRecord {
+    /// Index into the ingested object list.
+    pub object: usize,
+    /// The alternative tested: a metal at this roughness, or (absent) a Lambert surface.
+    pub metal_roughness: Option<f32>,
+    pub fit_pixels: usize,
+    pub test_pixels: usize,
+    /// Gain of the alternative on the L1 and on the RMS error, fractions of the test pixels' mean radiance,
+    /// with their paired t-statistics.
+    pub l1_gain: (f64, f64),
+    pub rms_gain: Option<(f64, f64)>,
+    pub switched: bool,
+}
+
+impl From<&family::Look> for FamilyRecord {
+    fn from(l: &family::Look) -> Self {
+        Self {
+            object: l.object,
+            metal_roughness: l.metal_roughness,
+            fit_pixels: l.fit_pixels,
+            test_pixels: l.test_pixels,
+            l1_gain: l.l1,
+            rms_gain: l.rms,
+            switched: l.kept,
+        }
+    }
 }
 
 /// Why the per-triangle stage failed.
@@ -245,8 +288,12 @@ pub struct TriangleSettings {
     /// A light cycle stops before `light_steps` once every emitter's averaged emission has at most this
     /// relative standard error ([`light::light_relative_se`]).
     pub light_precision: f64,
-    /// Ratio steps of the pass after each light cycle ([`light::refine_light`]).
+    /// Ratio steps of the pass after each light cycle ([`light::refine_light`]), and of the pass after the lobe
+    /// family look when it switched some object ([`family`]).
     pub light_fit_steps: u32,
+    /// Budget: pixels per object of the lobe family look after the final round's light re-solve ([`family`]),
+    /// half of them, at most [`family::FIT_PIXELS`], to fit both families and the rest to test; 0 = no look.
+    pub family_pixels: u32,
     /// Seed of the stage's renders.
     pub seed: u64,
 }
@@ -464,6 +511,7 @@ pub fn run_rounds(
             closure_cut: 0,
             seconds: 0.0,
             emission: state.emission.clone(),
+            families: Vec::new(),
         };
         progress.phase("round", u64::from(cfg.rounds) + 1, u64::from(state.rounds_done));
         progress.set_message(&format!("{} triangles, loss {:.4}", rec.triangles, fitted.loss.last().unwrap_or(&0.0)));
@@ -501,6 +549,27 @@ pub fn run_rounds(
                 rec.loss.extend(again.loss);
             }
             rec.emission.clone_from(&state.emission);
+            if cfg.family_pixels > 0 {
+                // The lobe families, looked at again with the neighbours resolved by place.
+                let (looks, loss) = family::family_look(inputs, &scene, &pix.samples, &mut state, round, progress)?;
+                let switched: Vec<String> = looks
+                    .iter()
+                    .filter(|l| l.kept)
+                    .map(|l| match l.metal_roughness {
+                        Some(r) => format!("object {} → metal (roughness {r:.2})", l.object),
+                        None => format!("object {} → Lambert", l.object),
+                    })
+                    .collect();
+                progress.note(&format!(
+                    "[triangle] round {round}: lobe family look at {} objects: {} switched{}",
+                    looks.len(),
+                    switched.len(),
+                    if switched.is_empty() { String::new() } else { format!(" ({})", switched.join(", ")) }
+                ));
+                tracing::info!(round, looked = looks.len(), switched = switched.len(), "lobe family look");
+                rec.loss.extend(loss);
+                rec.families = looks.iter().map(FamilyRecord::from).collect();
+            }
         }
         rec.seconds = started.elapsed().as_secs_f64();
         tracing::info!(round, triangles = rec.triangles, marked = rec.marked, refined = rec.refined, "triangle round");

@@ -71,11 +71,11 @@ pub fn neighbours(state: &TriangleState) -> Vec<Vec<u32>> {
 /// `min Σ_t n_t (ρ_t − r_t)² + λ Σ_(t,u) (ρ_t − ρ_u)²` over the free triangles by Gauss–Seidel, from `rho`
 /// (updated in place). Triangles with neither data nor free neighbours keep their value.
 pub fn smooth_solve(rho: &mut [Vec3], ratio: &[Vec3], weight: &[f64], nbrs: &[Vec<u32>], free: &[bool], lambda: f64) {
+    // The free triangles in index order, listed once: the lobe family look frees one object of a house's 10⁵
+    // triangles per fit.
+    let order: Vec<usize> = (0..rho.len()).filter(|&t| free[t]).collect();
     for _ in 0..SMOOTH_SWEEPS {
-        for t in 0..rho.len() {
-            if !free[t] {
-                continue;
-            }
+        for &t in &order {
             let mut num = ratio[t].as_dvec3() * weight[t];
             let mut den = weight[t];
             for &u in &nbrs[t] {
@@ -378,13 +378,107 @@ pub fn fit_pass(
     progress: &dyn crate::Progress,
 ) -> Result<Fitted, TriangleError> {
     let cfg = inputs.settings;
-    let n = state.triangles.len();
     // Emitting objects keep their per-object materials (emission and materials are entangled there); their
     // emission is re-solved between passes of ratio steps. Only objects that emit now may emit: the object
     // stage's model decision (no emission) holds every other object at 0.
     let emits: Vec<bool> = state.emission.iter().map(|e| e.max_element() > 0.0).collect();
     let free: Vec<bool> = state.face_object.iter().map(|&o| !emits[o as usize]).collect();
     let nbrs = neighbours(state);
+    let keys: Vec<u64> =
+        pass_steps(cfg.fit_steps, cfg.light_fit_steps, pass).map(|k| key::triangle(round, k)).collect();
+    let (n, steps, pixels) = (state.triangles.len(), keys.len(), samples.len());
+    let phase = |i: usize| {
+        format!(
+            "round {round}: ratio step {i}/{steps} of pass {pass} ({n} triangles, {pixels} pixels at {} paths), block",
+            cfg.spp
+        )
+    };
+    let plan =
+        StepPlan { free: &free, nbrs: &nbrs, keys: &keys, update: cfg.fit_steps > 0, one_factor: false, phase: &phase };
+    let Stepped { loss, residual, mut work } = ratio_steps(inputs, scene, samples, state, &plan, progress)?;
+    if cfg.adam_iterations > 0 {
+        super::adam::adam(inputs, scene, samples, state, &free, &nbrs, round, &mut work)?;
+    }
+    // The object fit's bound and reasons (`crate::fit::samples`), per round.
+    if work.discarded > 0 {
+        tracing::warn!(round, discarded = work.discarded, paths = work.paths, "non-finite path samples discarded");
+    }
+    bound_discards(round, work.discarded, work.paths)?;
+    Ok(Fitted { loss, residual, free, traced_paths: work.paths, discarded_samples: work.discarded })
+}
+
+/// What a run of ratio steps ([`ratio_steps`]) updates and how it renders.
+pub(crate) struct StepPlan<'a> {
+    /// Per triangle: its base colour is updated (else it stays, and neither smoothing nor shrinkage moves it).
+    pub free: &'a [bool],
+    /// [`neighbours`] of the state's mesh.
+    pub nbrs: &'a [Vec<u32>],
+    /// The render key of each step, one step per key.
+    pub keys: &'a [u64],
+    /// Whether the steps update the base colours (else they only render, for the loss and residuals).
+    pub update: bool,
+    /// Whether each object's free triangles move by one factor per channel ([`object_factor`]), their shape
+    /// held, instead of each by its own ratio shrunk towards the object's.
+    pub one_factor: bool,
+    /// The progress phase of step i (1-based) of a render's blocks.
+    pub phase: &'a dyn Fn(usize) -> String,
+}
+
+/// Per free triangle: its value times its object's photo sum over render sum (over the pixels the steps use on
+/// the object's free triangles), per channel: the ratio step of an object with one colour, or of a texture whose
+/// shape is held. Other triangles keep their value.
+fn object_factor(
+    old: &[Vec3],
+    (t_sum, r_sum): (&[DVec3], &[DVec3]),
+    free: &[bool],
+    face_object: &[u32],
+    objects: usize,
+) -> Vec<Vec3> {
+    let mut sums = vec![(DVec3::ZERO, DVec3::ZERO); objects];
+    for t in (0..old.len()).filter(|&t| free[t]) {
+        let s = &mut sums[face_object[t] as usize];
+        s.0 += t_sum[t];
+        s.1 += r_sum[t];
+    }
+    (0..old.len())
+        .map(|t| {
+            if !free[t] {
+                return old[t];
+            }
+            let (ts, rs) = sums[face_object[t] as usize];
+            // A channel the renders put at 0 (no pixel, or a black start) has no ratio: its value stays.
+            let q = |c: usize| if rs[c] > 0.0 { ts[c] / rs[c] } else { 1.0 };
+            (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
+        })
+        .collect()
+}
+
+/// What a run of ratio steps leaves: the loss before each update, the residuals against the render predicted
+/// for the last update, and the tracer's work.
+pub(crate) struct Stepped {
+    /// Mean per-channel |photo − render| over `samples`, per step (before its update).
+    pub loss: Vec<f64>,
+    /// Per sample: photo − predicted render after the last update.
+    pub residual: Vec<Vec3>,
+    pub work: tracer::TraceStats,
+}
+
+/// Ratio steps of the base colours of `plan.free` triangles on `samples` (the other triangles stay as they
+/// are): per step one render of the samples at `triangle.spp` paths with that step's key, each free triangle's
+/// ratio ρ·T/R shrunk towards its object's value ([`shrink_to_object`]), the smoothness solve and the
+/// per-object relaxation of reversing steps. The one body of a round's passes ([`fit_pass`]) and of the lobe
+/// family look's fits on an object's own pixels ([`super::family`]).
+pub(crate) fn ratio_steps(
+    inputs: &RoundInputs<'_>,
+    scene: &tracer::Scene,
+    samples: &[TriSample],
+    state: &mut TriangleState,
+    plan: &StepPlan<'_>,
+    progress: &dyn crate::Progress,
+) -> Result<Stepped, TriangleError> {
+    let cfg = inputs.settings;
+    let n = state.triangles.len();
+    let free = plan.free;
     let mut interior = vec![0usize; n];
     for s in samples {
         interior[s.tri as usize] += usize::from(s.interior);
@@ -394,13 +488,11 @@ pub fn fit_pass(
     let mut loss = Vec::new();
     let mut residual = vec![Vec3::ZERO; samples.len()];
     let mut work = tracer::TraceStats::default();
-    let keys = pass_steps(cfg.fit_steps, cfg.light_fit_steps, pass);
-    let (first, steps) = (keys.start, keys.len() as u32);
     // Per object and channel: the fraction of the ratio step taken, and the object's mean change last step.
     let objects = state.emission.len();
     let mut relax = vec![DVec3::ONE; objects];
     let mut last_step = vec![DVec3::ZERO; objects];
-    for k in keys {
+    for (i, &key) in plan.keys.iter().enumerate() {
         let params = state.params();
         let (values, stats) = crate::blocks::render_blocks(
             &tracer::Renderer::new(scene, &params, inputs.tracer)?,
@@ -408,14 +500,9 @@ pub fn fit_pass(
             &pix,
             cfg.spp,
             cfg.seed,
-            key::triangle(round, k),
+            key,
             progress,
-            &format!(
-                "round {round}: ratio step {}/{steps} of pass {pass} ({n} triangles, {} pixels at {} paths), block",
-                k - first + 1,
-                pix.len(),
-                cfg.spp
-            ),
+            &(plan.phase)(i + 1),
         )?;
         work.add(&stats);
         let mut t_sum = vec![DVec3::ZERO; n];
@@ -441,7 +528,7 @@ pub fn fit_pass(
         }
         loss.push(l / samples.len().max(1) as f64);
         let mut rho = old.clone();
-        if cfg.fit_steps > 0 {
+        if plan.update {
             let ratio: Vec<Vec3> = (0..n)
                 .map(|t| {
                     let r = r_sum[t];
@@ -449,7 +536,9 @@ pub fn fit_pass(
                     (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
                 })
                 .collect();
-            let ratio = if SHRINK {
+            let ratio = if plan.one_factor {
+                object_factor(&old, (&t_sum, &r_sum), free, &state.face_object, objects)
+            } else if SHRINK {
                 let evidence = Evidence {
                     old: &old,
                     t_sum: &t_sum,
@@ -459,12 +548,19 @@ pub fn fit_pass(
                     interior: &interior,
                     pooled: &pooled,
                 };
-                shrink_to_object(&ratio, &evidence, &state.face_object, &free, state.emission.len())
+                shrink_to_object(&ratio, &evidence, &state.face_object, free, state.emission.len())
             } else {
                 ratio
             };
-            smooth_solve(&mut rho, &ratio, &count, &nbrs, &free, cfg.smoothness);
-            relax_objects(&mut rho, &old, &count, &free, &state.face_object, &mut relax, &mut last_step);
+            if plan.one_factor {
+                // One factor per object keeps its shape: nothing for the smoothness to do.
+                for (t, r) in ratio.iter().enumerate().filter(|&(t, _)| free[t]) {
+                    rho[t] = *r;
+                }
+            } else {
+                smooth_solve(&mut rho, &ratio, &count, plan.nbrs, free, cfg.smoothness);
+            }
+            relax_objects(&mut rho, &old, &count, free, &state.face_object, &mut relax, &mut last_step);
             for (m, r) in state.materials.iter_mut().zip(&rho) {
                 m.base_color = *r;
             }
@@ -478,15 +574,7 @@ pub fn fit_pass(
             residual[j] = s.target - *v * scale;
         }
     }
-    if cfg.adam_iterations > 0 {
-        super::adam::adam(inputs, scene, samples, state, &free, &nbrs, round, &mut work)?;
-    }
-    // The object fit's bound and reasons (`crate::fit::samples`), per round.
-    if work.discarded > 0 {
-        tracing::warn!(round, discarded = work.discarded, paths = work.paths, "non-finite path samples discarded");
-    }
-    bound_discards(round, work.discarded, work.paths)?;
-    Ok(Fitted { loss, residual, free, traced_paths: work.paths, discarded_samples: work.discarded })
+    Ok(Stepped { loss, residual, work })
 }
 
 #[cfg(test)]
@@ -536,6 +624,23 @@ mod tests {
             relax_objects(&mut x, &old, &[1.0], &[true], &[0], &mut relax, &mut last);
         }
         assert!((x[0].x - 0.9).abs() < 1e-3, "{x:?}");
+    }
+
+    #[test]
+    fn one_factor_per_object_keeps_its_shape_and_matches_its_sums() {
+        // Object 0: a texture 0.2 / 0.4 whose renders sum to half the photos' (factor 2 per channel); object 1
+        // held (not free); triangle 3 of object 0 has no pixel and moves with its object all the same.
+        let old = vec![Vec3::splat(0.2), Vec3::splat(0.4), Vec3::splat(0.5), Vec3::splat(0.3)];
+        let t_sum = vec![DVec3::splat(2.0), DVec3::splat(6.0), DVec3::splat(1.0), DVec3::ZERO];
+        let r_sum = vec![DVec3::splat(1.0), DVec3::splat(3.0), DVec3::splat(3.0), DVec3::ZERO];
+        let out = object_factor(&old, (&t_sum, &r_sum), &[true, true, false, true], &[0, 0, 1, 0], 2);
+        for (t, want) in [(0, 0.4), (1, 0.8), (2, 0.5), (3, 0.6)] {
+            assert!((out[t].x - want).abs() < 1e-6, "triangle {t}: {out:?}");
+        }
+        // A factor that would pass 1 is clamped there; a channel with no render keeps its value.
+        let r_none = vec![DVec3::new(1.0, 1.0, 0.0), DVec3::new(1.0, 1.0, 0.0), DVec3::ZERO, DVec3::ZERO];
+        let out = object_factor(&old, (&t_sum, &r_none), &[true, true, false, true], &[0, 0, 1, 0], 2);
+        assert_eq!(out[1], Vec3::new(1.0, 1.0, 0.4));
     }
 
     #[test]

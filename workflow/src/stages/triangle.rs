@@ -91,6 +91,7 @@ impl From<&TriangleConfig> for TriangleSettings {
             light_steps: c.light_steps,
             light_precision: c.light_precision,
             light_fit_steps: c.light_fit_steps,
+            family_pixels: c.family_pixels,
             seed: c.seed,
         }
     }

@@ -1,0 +1,354 @@
+//! The lobe family look on the per-triangle scene: after the final round's light re-solve, every non-emitting
+//! object is tried in the other lobe family (a dielectric as a metal, a metal as a Lambert surface) and switched
+//! where held-out pixels prefer it.
+//!
+//! The object stage decides each object's family with one colour per object for every object of the room: a
+//! metal mirrors its neighbours, and where their constants are off (a textured floor fitted by one colour, a
+//! lamp fitted a few percent dim) the metal fits its pixels worse than a dielectric that absorbs the misfit, and
+//! stays dielectric. The per-triangle stage resolves the neighbours by place, so the question is asked again
+//! here (measured on the corpus house: with the true metallic put in between the stages the per-triangle summary
+//! goes 0.0272 → 0.0221; docs/optim/design-measurements.md, "What the lobe families leave").
+//!
+//! - **Pixels**: the object's pixels among the round's (those whose centre ray hits it), in a random order keyed
+//!   by the pixel and the round, at most `triangle.family_pixels` of them (the budget that bounds the look's
+//!   cost by the objects, not by the photos); the first half of them, at most [`FIT_PIXELS`], fit, the rest
+//!   test. An object with fewer than [`MIN_HALF`] pixels in either part is not looked at.
+//! - **Fits**: the object's own family (its area-mean material) and the other family — for an area-mean
+//!   metallic below ½ a metal (metallic 1) at each roughness of [`METAL_PROBES`], for a metal a Lambert surface
+//!   (metallic 0, specular 0) — each fitted the same way, with **one colour for the object**: its triangles
+//!   start at the object's area-mean base colour and take [`FAMILY_STEPS`] ratio steps of one factor per
+//!   channel ([`super::ratio::ratio_steps`] with `one_factor`) on the fit pixels, every other triangle held. Of
+//!   the metal probes, the one of lowest loss at its last step is tested.
+//! - **Test**: on the test pixels the two fits are rendered twice each at half of `object.holdout_spp` paths
+//!   with common random numbers, and the other family is kept where it fits better on the L1 of the two
+//!   renders' mean or on their unbiased squared error, with t > [`T_KEEP`](crate::fit::paired::T_KEEP) and a
+//!   gain above [`MIN_GAIN`](crate::fit::paired::MIN_GAIN) of the pixels' mean radiance: the object stage's
+//!   metal test ([`crate::fit::paired`]), in its sequential looks (256, 512, … of the test pixels, stopped once
+//!   the test cannot pass or clearly passes).
+//! - **Why both fitted alike, with one colour**: a metal is told from a diffuse surface by how its radiance
+//!   varies over the object (a reflection of the room), and a panorama's views see a point from one place, so
+//!   a colour per triangle reproduces a metal's reflection as a texture. Against the per-triangle model as the
+//!   stage fitted it (which has also seen the test pixels), the metal-lamp fixture's metal box, put in as a
+//!   Lambert surface, passed at t = 3.3 on its squared error and 0.7 on its L1; against its own family refitted
+//!   per triangle on the fit pixels at t = 9.7 and 7.2, and on the corpus house the true metals did not pass
+//!   at all (`box-0-3` t = 1.2 and 0.6, `box-4-3` 0.8 and 0.0); with one colour for both, the box passes at
+//!   t = 20 and 25 (`pipeline/tests/triangle_family.rs`; docs/optim/design-measurements.md, "The lobe family
+//!   look on the per-triangle scene"). The neighbours keep their per-triangle values, which is what the look
+//!   adds to the object stage's decision.
+//! - **After**: every object decided against the same per-triangle model, the alternatives kept replace their
+//!   objects' triangles together, and a pass of `light_fit_steps` ratio steps on all the round's pixels lets
+//!   every triangle follow (a new metal's neighbours, which it now reflects, and its own colours, a texture
+//!   where its pixels show one, on all its pixels).
+
+use glam::Vec3;
+
+use super::pixels::TriSample;
+use super::ratio::{self, StepPlan};
+use super::{RoundInputs, TriangleError, TriangleState};
+use crate::fit::paired::{self, Statistic, Verdict};
+use crate::fit::{layout, roughness};
+use crate::progress::{Muted, check_stop};
+use crate::streams::{self, draw, key};
+
+/// Roughness of the metal alternatives (0.22, 0.33 and 0.45), the middle points of the object stage's grid
+/// ([`roughness::GRID`]), where its metal probes look: a polished or brushed metal's reflection of the room is
+/// sharp enough there to tell it from a diffuse surface, and rougher metals light their pixels nearly as a
+/// diffuse surface of the same colour does (the object stage's walls preferred a metal at 0.62 and above,
+/// absorbing what the light got wrong).
+pub const METAL_PROBES: [f32; 3] = [roughness::GRID[2] as f32, roughness::GRID[3] as f32, roughness::GRID[4] as f32];
+
+/// Ratio steps of each family's fit on its pixels: the object's one colour settles in one or two (its render is
+/// nearly linear in its base colour), the third takes up what its light on itself moved.
+pub const FAMILY_STEPS: u32 = 3;
+
+/// Fewest pixels in each part (fit, test) of an object for it to be looked at: the paired test's t rests on
+/// the scatter of its differences, which fewer pixels estimate too poorly for the t > 3 threshold to hold its
+/// level.
+pub const MIN_HALF: usize = 32;
+
+/// Most pixels an object's fits use: one colour per family (3 parameters) is known to well under a percent
+/// from a few hundred pixels, and the rest of the budget goes to the test, whose power the switches need.
+pub const FIT_PIXELS: usize = 512;
+
+/// How many of an object's `n` rows (in the look's order) fit; the rest test. Half of them up to
+/// [`FIT_PIXELS`].
+#[must_use]
+pub fn fit_rows(n: usize) -> usize {
+    (n / 2).min(FIT_PIXELS)
+}
+
+/// One object's look.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Look {
+    pub object: usize,
+    /// The alternative tested: a metal at this roughness, or (`None`) a Lambert surface.
+    pub metal_roughness: Option<f32>,
+    /// Its base colour after the steps on the fit pixels.
+    pub base_color: Vec3,
+    pub fit_pixels: usize,
+    /// The test pixels looked at before the test ended (all of them, unless it stopped early).
+    pub test_pixels: usize,
+    /// The alternative's gain on the L1 of the renders' mean and on the RMS error, as fractions of the test
+    /// pixels' mean radiance, with their paired t-statistics.
+    pub l1: (f64, f64),
+    pub rms: Option<(f64, f64)>,
+    pub kept: bool,
+}
+
+/// Per object: the rows of `samples` whose centre ray hits it, in the look's random order, at most `budget`.
+#[must_use]
+pub fn object_rows(
+    samples: &[TriSample],
+    face_object: &[u32],
+    objects: usize,
+    budget: usize,
+    seed: u64,
+    round: u32,
+) -> Vec<Vec<usize>> {
+    let mut rows: Vec<Vec<usize>> = vec![Vec::new(); objects];
+    for (j, s) in samples.iter().enumerate() {
+        if let Some(r) = face_object.get(s.tri as usize).and_then(|&o| rows.get_mut(o as usize)) {
+            r.push(j);
+        }
+    }
+    for r in &mut rows {
+        let mut ranked: Vec<(f64, usize)> = r
+            .iter()
+            .map(|&j| {
+                (
+                    streams::uniform(
+                        seed,
+                        draw::TRIANGLE_FAMILY,
+                        streams::pixel_key(samples[j].pixel),
+                        u64::from(round),
+                    ),
+                    j,
+                )
+            })
+            .collect();
+        ranked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        ranked.truncate(budget);
+        *r = ranked.into_iter().map(|(_, j)| j).collect();
+    }
+    rows
+}
+
+/// The look at every non-emitting object of `state` on the round's `samples` (see the module docs); the
+/// alternatives kept replace their objects' triangles and a pass of ratio steps follows. Returns each object's
+/// look and the loss of that pass's steps (empty when nothing was kept).
+pub fn family_look(
+    inputs: &RoundInputs<'_>,
+    scene: &tracer::Scene,
+    samples: &[TriSample],
+    state: &mut TriangleState,
+    round: u32,
+    progress: &dyn crate::Progress,
+) -> Result<(Vec<Look>, Vec<f64>), TriangleError> {
+    let cfg = inputs.settings;
+    let objects = state.emission.len();
+    let means = state.object_means(objects);
+    let rows = object_rows(samples, &state.face_object, objects, cfg.family_pixels as usize, cfg.seed, round);
+    let mut tris_of: Vec<Vec<usize>> = vec![Vec::new(); objects];
+    for (t, &o) in state.face_object.iter().enumerate() {
+        if let Some(v) = tris_of.get_mut(o as usize) {
+            v.push(t);
+        }
+    }
+    let candidates: Vec<usize> = (0..objects)
+        .filter(|&o| state.emission[o].max_element() <= 0.0 && means[o].is_some() && rows[o].len() / 2 >= MIN_HALF)
+        .collect();
+    let nbrs = ratio::neighbours(state);
+    let mut free = vec![false; state.triangles.len()];
+    let mut looks = Vec::new();
+    let mut kept: Vec<(usize, Vec<tracer::Material>)> = Vec::new();
+    let current = state.params();
+    progress.phase("lobe family look: object", candidates.len() as u64, 0);
+    let muted = Muted(progress);
+    for (done, &o) in candidates.iter().enumerate() {
+        check_stop(progress)?;
+        progress.set_position(done as u64);
+        let Some(mean) = means[o] else { continue };
+        let (fit, test) = rows[o].split_at(fit_rows(rows[o].len()));
+        let fit: Vec<TriSample> = fit.iter().map(|&j| samples[j]).collect();
+        let test: Vec<TriSample> = test.iter().map(|&j| samples[j]).collect();
+        // The object's own family first (its mean material), then the other family's alternatives.
+        let mut families = vec![mean];
+        if mean.metallic < 0.5 {
+            families.extend(METAL_PROBES.iter().map(|&r| tracer::Material { roughness: r, metallic: 1.0, ..mean }));
+        } else {
+            families.push(tracer::Material {
+                base_color: mean.base_color,
+                roughness: layout::START_ROUGHNESS as f32,
+                metallic: 0.0,
+                specular: 0.0,
+            });
+        }
+        let tris = &tris_of[o];
+        for &t in tris {
+            free[t] = true;
+        }
+        let saved: Vec<tracer::Material> = tris.iter().map(|&t| state.materials[t]).collect();
+        let mut fitted: Vec<(f64, Vec<tracer::Material>)> = Vec::with_capacity(families.len());
+        for (a, family) in families.iter().enumerate() {
+            for &t in tris {
+                state.materials[t] = *family;
+            }
+            let keys: Vec<u64> = (0..FAMILY_STEPS).map(|k| key::triangle_family(o as u32, a as u32, k)).collect();
+            let plan = StepPlan {
+                free: &free,
+                nbrs: &nbrs,
+                keys: &keys,
+                update: true,
+                one_factor: true,
+                phase: &|_| String::new(),
+            };
+            let stepped = ratio::ratio_steps(inputs, scene, &fit, state, &plan, &muted)?;
+            let loss = stepped.loss.last().copied().unwrap_or(f64::INFINITY);
+            fitted.push((loss, tris.iter().map(|&t| state.materials[t]).collect()));
+        }
+        for (&t, m) in tris.iter().zip(&saved) {
+            state.materials[t] = *m;
+            free[t] = false;
+        }
+        let mut fitted = fitted.into_iter();
+        let Some((_, own)) = fitted.next() else { continue };
+        let Some((_, alt)) = fitted.min_by(|a, b| a.0.total_cmp(&b.0)) else { continue };
+        let with = |materials: &[tracer::Material]| {
+            let mut p = current.clone();
+            for (&t, m) in tris.iter().zip(materials) {
+                p.materials[t] = *m;
+            }
+            p
+        };
+        let (before, after) = (with(&own), with(&alt));
+        let verdict = test_alternative(inputs, scene, &test, (&before, &after), (o, round), &muted)?;
+        let mean_target = mean_target(&test);
+        let passes = verdict.passes(mean_target);
+        // One colour for the object (a uniform start moved by one factor per channel).
+        let base_color = alt.first().map_or(mean.base_color, |m| m.base_color);
+        let look = Look {
+            object: o,
+            metal_roughness: alt.first().filter(|m| m.metallic >= 0.5).map(|m| m.roughness),
+            base_color,
+            fit_pixels: fit.len(),
+            test_pixels: verdict.d.len(),
+            l1: verdict.gain(mean_target),
+            rms: verdict.squared.as_ref().map(|q| q.gain(mean_target)),
+            kept: passes,
+        };
+        tracing::debug!(object = o, ?look, figures = %verdict.figures(mean_target), "lobe family look");
+        if passes {
+            kept.push((o, alt));
+        }
+        looks.push(look);
+    }
+    progress.set_position(candidates.len() as u64);
+    if kept.is_empty() {
+        return Ok((looks, Vec::new()));
+    }
+    for (o, alt) in &kept {
+        for (&t, m) in tris_of[*o].iter().zip(alt) {
+            state.materials[t] = *m;
+        }
+    }
+    let fitted = ratio::fit_pass(inputs, scene, samples, state, round, super::light::LIGHT_CYCLES + 1, progress)?;
+    Ok((looks, fitted.loss))
+}
+
+/// The paired test of `after` against `before` on an object's test pixels: each rendered twice at half of
+/// `object.holdout_spp` paths, the two models with common random numbers, in looks at
+/// [`FIRST_LOOK`](paired::FIRST_LOOK), twice as many, … of the pixels until all are looked at or the test stops
+/// because it cannot pass or clearly passes ([`paired::early_stop`], the object stage's sequential looks). Random
+/// numbers are keyed by the pixel, so the looks give exactly the values of one render of the pixels looked at.
+fn test_alternative(
+    inputs: &RoundInputs<'_>,
+    scene: &tracer::Scene,
+    test: &[TriSample],
+    (before, after): (&tracer::Params, &tracer::Params),
+    (object, round): (usize, u32),
+    progress: &dyn crate::Progress,
+) -> Result<Verdict, TriangleError> {
+    let spp = (inputs.object.holdout_spp / 2).max(1);
+    let seed = inputs.settings.seed;
+    let (r_before, r_after) =
+        (tracer::Renderer::new(scene, before, inputs.tracer)?, tracer::Renderer::new(scene, after, inputs.tracer)?);
+    let mean_target = mean_target(test);
+    let target = |j: usize| test[j].target.as_dvec3().to_array();
+    let (mut i_d, mut i_t) = (Vec::with_capacity(test.len()), Vec::with_capacity(test.len()));
+    let mut n_look = paired::FIRST_LOOK;
+    loop {
+        let new = &test[i_d.len()..test.len().min(n_look)];
+        let pix: Vec<tracer::PixelRef> = new.iter().map(|s| s.pixel).collect();
+        let mut halves = Vec::with_capacity(2);
+        for h in 0..2 {
+            let key = key::triangle_family(object as u32, key::TRIANGLE_FAMILY_TEST, h);
+            let (a, sa) = crate::blocks::render_blocks(&r_before, inputs.cameras, &pix, spp, seed, key, progress, "")?;
+            let (b, sb) = crate::blocks::render_blocks(&r_after, inputs.cameras, &pix, spp, seed, key, progress, "")?;
+            ratio::bound_discards(round, sa.discarded + sb.discarded, sa.paths + sb.paths)?;
+            halves.push((a, b));
+        }
+        for j in 0..pix.len() {
+            i_d.push([halves[0].0[j], halves[1].0[j]]);
+            i_t.push([halves[0].1[j], halves[1].1[j]]);
+        }
+        let rows: Vec<usize> = (0..i_d.len()).collect();
+        let (d, squared) = paired::differences(Statistic::L1OrSquaredError, target, &rows, &i_d, &i_t);
+        let stopped = if rows.len() == test.len() {
+            None
+        } else {
+            paired::early_stop(&d, squared.as_ref(), test.len(), mean_target)
+        };
+        if rows.len() == test.len() || stopped.is_some() {
+            return Ok(Verdict { d, squared, n_full: test.len(), stopped });
+        }
+        n_look *= 2;
+    }
+}
+
+/// The pixels' mean radiance summed over the channels, which the test's gains are fractions of.
+fn mean_target(test: &[TriSample]) -> f64 {
+    test.iter().map(|s| f64::from(s.target.abs().element_sum())).sum::<f64>() / test.len().max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec2;
+    use tracer::PixelRef;
+
+    fn sample(i: u32, tri: u32, on_object: bool) -> TriSample {
+        TriSample {
+            pixel: PixelRef { view: 0, x: i, y: 0 },
+            target: Vec3::splat(0.5),
+            tri,
+            child: 0,
+            interior: on_object,
+            on_object,
+            bary: Vec2::ZERO,
+        }
+    }
+
+    #[test]
+    fn an_objects_rows_hit_it_fit_the_budget_and_keep_one_order() {
+        // Object 0 has triangles 0 and 1, object 1 triangle 2; every third pixel of object 0 straddles an edge
+        // (its centre hits the object all the same).
+        let samples: Vec<TriSample> =
+            (0..300).map(|i| sample(i, i % 2, i % 3 != 0)).chain((300..340).map(|i| sample(i, 2, true))).collect();
+        let face_object = [0, 0, 1];
+        let rows = object_rows(&samples, &face_object, 2, 128, 7, 0);
+        assert_eq!(rows[0].len(), 128);
+        assert_eq!(rows[1].len(), 40);
+        for (o, r) in rows.iter().enumerate() {
+            assert!(r.iter().all(|&j| face_object[samples[j].tri as usize] as usize == o));
+            let mut u = r.clone();
+            u.sort_unstable();
+            u.dedup();
+            assert_eq!(u.len(), r.len(), "a row twice");
+        }
+        // Another seed draws another sample of object 0's 300 pixels; the same seed the same one.
+        assert_eq!(rows, object_rows(&samples, &face_object, 2, 128, 7, 0));
+        assert_ne!(rows[0], object_rows(&samples, &face_object, 2, 128, 8, 0)[0]);
+        // The budget takes a prefix of one order: a larger budget keeps the smaller one's rows first.
+        assert_eq!(rows[0][..], object_rows(&samples, &face_object, 2, 1000, 7, 0)[0][..128]);
+    }
+}

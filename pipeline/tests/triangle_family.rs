@@ -1,0 +1,97 @@
+//! The lobe family look of the per-triangle stage (`optim::triangle::family`) recovers known families:
+//! `data-fixtures/scenes/metal-lamp.toml` rendered in memory, started from its true per-triangle materials
+//! except two objects put in the wrong family — the metal box (base colour 0.90 / 0.88 / 0.85, roughness 0.3,
+//! metallic 1) made a Lambert surface, the floor (diffuse) made a metal — and one pass of ratio steps, so that
+//! each wrong family carries the colours that fit it best. The look must switch exactly those two (the box to a
+//! metal of nearly its true colour, the floor to a Lambert surface of nearly its own), and leave every other
+//! object, whose family is right, as it was. Seeded renders; the test's margins are the measured ones below.
+
+mod common;
+
+use optim::triangle::{RoundInputs, TriangleSettings, family, pixels, ratio};
+use workflow::config::TriangleConfig;
+
+#[test]
+fn the_look_switches_the_objects_in_the_wrong_family_and_only_them() {
+    let (built, images) = common::synth_scene("metal-lamp", 256);
+    let k = built.desc.objects.len();
+    let find = |label: &str| built.desc.objects.iter().position(|o| o.label == label).unwrap();
+    let (boxed, floor) = (find("metal box"), find("floor"));
+    let mut state = lab::synth::true_triangle_start(&built).unwrap();
+    let truth = state.clone();
+    for (t, &o) in state.face_object.iter().enumerate() {
+        let m = &mut state.materials[t];
+        if o as usize == boxed {
+            (m.metallic, m.specular, m.roughness) = (0.0, 0.0, 0.5);
+        } else if o as usize == floor {
+            (m.metallic, m.roughness) = (1.0, 0.3);
+        }
+    }
+    let config = TriangleConfig::default();
+    let settings = TriangleSettings::from(&config);
+    let object = optim::fit::ObjectFitSettings::default();
+    let specular = vec![false; k];
+    let inputs = RoundInputs {
+        cameras: &built.cameras,
+        images: &images,
+        settings: &settings,
+        object: &object,
+        tracer: &built.settings,
+        specular: &specular,
+    };
+    let bar = optim::NoProgress;
+    let scene = state.scene().unwrap();
+    let n = state.triangles.len();
+    let pix = pixels::collect(&scene, &built.cameras, &images, n, config.pixels_per_triangle as usize, config.seed);
+    // The wrong families' best colours (the stage's first pass).
+    ratio::fit_pass(&inputs, &scene, &pix.samples, &mut state, 0, 0, &bar).unwrap();
+    let fitted = state.object_means(k);
+    let (looks, loss) = family::family_look(&inputs, &scene, &pix.samples, &mut state, 0, &bar).unwrap();
+    for l in &looks {
+        eprintln!(
+            "object {} ({}): {:?} at {:?}, L1 {:?}, RMS {:?}, {} / {} pixels, kept {}",
+            l.object,
+            built.desc.objects[l.object].label,
+            l.metal_roughness,
+            l.base_color,
+            l.l1,
+            l.rms,
+            l.fit_pixels,
+            l.test_pixels,
+            l.kept
+        );
+    }
+    let after = state.object_means(k);
+    let want = truth.object_means(k);
+    // Every non-emitting object is looked at (each has hundreds of pixels).
+    let emitting = (0..k).filter(|&o| built.params.emission[o].max_element() > 0.0).count();
+    assert_eq!(looks.len(), k - emitting, "{looks:?}");
+    let switched: Vec<usize> = looks.iter().filter(|l| l.kept).map(|l| l.object).collect();
+    assert_eq!(switched, {
+        let mut s = vec![boxed, floor];
+        s.sort_unstable();
+        s
+    });
+    // A switch is followed by its pass of ratio steps.
+    assert_eq!(loss.len(), config.light_fit_steps as usize);
+    let (b, f) = (after[boxed].unwrap(), after[floor].unwrap());
+    assert_eq!(b.metallic, 1.0);
+    assert!(looks.iter().any(|l| l.object == boxed && l.metal_roughness.is_some()));
+    assert_eq!((f.metallic, f.specular), (0.0, 0.0));
+    let err = |a: glam::Vec3, o: usize| (a - want[o].unwrap().base_color).abs().max_element();
+    eprintln!(
+        "box {:?} (fitted as Lambert {:?}); floor {:?} (fitted as metal {:?})",
+        b.base_color,
+        fitted[boxed].unwrap().base_color,
+        f.base_color,
+        fitted[floor].unwrap().base_color
+    );
+    // The metal's colour rests on its ratio steps at the nearest probe roughness (0.33 for the true 0.3).
+    assert!(err(b.base_color, boxed) < 0.08, "box {:?}", b.base_color);
+    assert!(err(f.base_color, floor) < 0.03, "floor {:?}", f.base_color);
+    // The objects whose family was right keep it.
+    for o in (0..k).filter(|&o| o != boxed && o != floor) {
+        let (a, w) = (after[o].unwrap(), want[o].unwrap());
+        assert_eq!((a.metallic, a.specular), (w.metallic, w.specular), "object {o}");
+    }
+}
