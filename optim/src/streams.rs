@@ -179,6 +179,11 @@ pub mod key {
     /// The alternative field of [`triangle_family`] for the renders of the look's test (steps 0 and 1: its two
     /// half-path renders).
     pub const TRIANGLE_FAMILY_TEST: u32 = 0xf;
+    /// The alternative field of [`triangle_family`] for the ratio steps of the switched objects after the look
+    /// (with the object field [`TRIANGLE_FAMILY_ALL`]; step k for the k-th step).
+    pub const TRIANGLE_FAMILY_PASS: u32 = 0xd;
+    /// The object field of [`triangle_family`] for keys that belong to no one object (the largest of 20 bits).
+    pub const TRIANGLE_FAMILY_ALL: u32 = 0xf_ffff;
 }
 
 #[cfg(test)]

@@ -46,6 +46,7 @@ fn the_look_switches_the_objects_in_the_wrong_family_and_only_them() {
     // The wrong families' best colours (the stage's first pass).
     ratio::fit_pass(&inputs, &scene, &pix.samples, &mut state, 0, 0, &bar).unwrap();
     let fitted = state.object_means(k);
+    let before = state.materials.clone();
     let (looks, loss) = family::family_look(&inputs, &scene, &pix.samples, &mut state, 0, &bar).unwrap();
     for l in &looks {
         eprintln!(
@@ -72,8 +73,12 @@ fn the_look_switches_the_objects_in_the_wrong_family_and_only_them() {
         s.sort_unstable();
         s
     });
-    // A switch is followed by its pass of ratio steps.
+    // A switch is followed by `light_fit_steps` ratio steps of the switched objects alone: every other
+    // triangle keeps its material to the bit.
     assert_eq!(loss.len(), config.light_fit_steps as usize);
+    for (t, &o) in state.face_object.iter().enumerate().filter(|&(_, &o)| !switched.contains(&(o as usize))) {
+        assert_eq!(state.materials[t], before[t], "triangle {t} of object {o}");
+    }
     let (b, f) = (after[boxed].unwrap(), after[floor].unwrap());
     assert_eq!(b.metallic, 1.0);
     assert!(looks.iter().any(|l| l.object == boxed && l.metal_roughness.is_some()));

@@ -323,7 +323,7 @@ pub struct TriangleConfig {
     /// relative standard error.
     pub light_precision: f64,
     /// Budget: ratio steps of the pass after each light cycle of the last round's light re-solve, and of the
-    /// pass after the lobe family look when it switched some object.
+    /// switched objects after the lobe family look when it switched some.
     pub light_fit_steps: u32,
     /// Budget: pixels per object of the lobe family look after the last round's light re-solve (half of them,
     /// at most 512, fit both lobe families, the rest test); 0 = no look.

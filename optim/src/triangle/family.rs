@@ -17,8 +17,8 @@
 //!   metallic below ½ a metal (metallic 1) at each roughness of [`METAL_PROBES`], for a metal a Lambert surface
 //!   (metallic 0, specular 0) — each fitted the same way, with **one colour for the object**: its triangles
 //!   start at the object's area-mean base colour and take [`FAMILY_STEPS`] ratio steps of one factor per
-//!   channel ([`super::ratio::ratio_steps`] with `one_factor`) on the fit pixels, every other triangle held. Of
-//!   the metal probes, the one of lowest loss at its last step is tested.
+//!   channel ([`super::ratio::ratio_steps`] with [`Update::OneFactor`]) on the fit pixels, every other
+//!   triangle held. Of the metal probes, the one of lowest loss at its last step is tested.
 //! - **Test**: on the test pixels the two fits are rendered twice each at half of `object.holdout_spp` paths
 //!   with common random numbers, and the other family is kept where it fits better on the L1 of the two
 //!   renders' mean or on their unbiased squared error, with t > [`T_KEEP`](crate::fit::paired::T_KEEP) and a
@@ -36,14 +36,18 @@
 //!   look on the per-triangle scene"). The neighbours keep their per-triangle values, which is what the look
 //!   adds to the object stage's decision.
 //! - **After**: every object decided against the same per-triangle model, the alternatives kept replace their
-//!   objects' triangles together, and a pass of `light_fit_steps` ratio steps on all the round's pixels lets
-//!   every triangle follow (a new metal's neighbours, which it now reflects, and its own colours, a texture
-//!   where its pixels show one, on all its pixels).
+//!   objects' triangles together, and `light_fit_steps` ratio steps of the switched objects' triangles on
+//!   their pixels (every other triangle held) let their colours follow per triangle, a texture where their
+//!   pixels show one. The rest of the scene was fitted with them in it and moves only by the light they send
+//!   it: on the corpus house a pass over all the round's pixels instead took the per-triangle summary to
+//!   0.0230 rather than 0.0240, at a cost of 9 of the 1280×1024 house's 49 minutes, and that gain (the
+//!   walls' 0.255 → 0.216) was the stage's ratio steps taken further, not the switches (`light_fit_steps`
+//!   sets those; docs/optim/design-measurements.md, "The lobe family look on the per-triangle scene").
 
 use glam::Vec3;
 
 use super::pixels::TriSample;
-use super::ratio::{self, StepPlan};
+use super::ratio::{self, StepPlan, Update};
 use super::{RoundInputs, TriangleError, TriangleState};
 use crate::fit::paired::{self, Statistic, Verdict};
 use crate::fit::{layout, roughness};
@@ -134,8 +138,8 @@ pub fn object_rows(
 }
 
 /// The look at every non-emitting object of `state` on the round's `samples` (see the module docs); the
-/// alternatives kept replace their objects' triangles and a pass of ratio steps follows. Returns each object's
-/// look and the loss of that pass's steps (empty when nothing was kept).
+/// alternatives kept replace their objects' triangles, whose ratio steps on their pixels follow. Returns each
+/// object's look and the loss of those steps on those pixels (empty when nothing was kept).
 pub fn family_look(
     inputs: &RoundInputs<'_>,
     scene: &tracer::Scene,
@@ -157,7 +161,6 @@ pub fn family_look(
     let candidates: Vec<usize> = (0..objects)
         .filter(|&o| state.emission[o].max_element() <= 0.0 && means[o].is_some() && rows[o].len() / 2 >= MIN_HALF)
         .collect();
-    let nbrs = ratio::neighbours(state);
     let mut free = vec![false; state.triangles.len()];
     let mut looks = Vec::new();
     let mut kept: Vec<(usize, Vec<tracer::Material>)> = Vec::new();
@@ -194,14 +197,7 @@ pub fn family_look(
                 state.materials[t] = *family;
             }
             let keys: Vec<u64> = (0..FAMILY_STEPS).map(|k| key::triangle_family(o as u32, a as u32, k)).collect();
-            let plan = StepPlan {
-                free: &free,
-                nbrs: &nbrs,
-                keys: &keys,
-                update: true,
-                one_factor: true,
-                phase: &|_| String::new(),
-            };
+            let plan = StepPlan { free: &free, keys: &keys, update: Update::OneFactor, phase: &|_| String::new() };
             let stepped = ratio::ratio_steps(inputs, scene, &fit, state, &plan, &muted)?;
             let loss = stepped.loss.last().copied().unwrap_or(f64::INFINITY);
             fitted.push((loss, tris.iter().map(|&t| state.materials[t]).collect()));
@@ -249,10 +245,23 @@ pub fn family_look(
     for (o, alt) in &kept {
         for (&t, m) in tris_of[*o].iter().zip(alt) {
             state.materials[t] = *m;
+            free[t] = true;
         }
     }
-    let fitted = ratio::fit_pass(inputs, scene, samples, state, round, super::light::LIGHT_CYCLES + 1, progress)?;
-    Ok((looks, fitted.loss))
+    // The switched objects' triangles follow their new family per triangle, on their own pixels: the rest of
+    // the scene's colours were fitted under them and move only by the switched objects' light on them.
+    let rows: Vec<TriSample> = samples.iter().filter(|s| free[s.tri as usize]).copied().collect();
+    let nbrs = ratio::neighbours(state);
+    let keys: Vec<u64> = (0..cfg.light_fit_steps)
+        .map(|k| key::triangle_family(key::TRIANGLE_FAMILY_ALL, key::TRIANGLE_FAMILY_PASS, k))
+        .collect();
+    let (steps, pixels) = (keys.len(), rows.len());
+    let phase =
+        |i: usize| format!("round {round}: ratio step {i}/{steps} of the switched objects ({pixels} pixels), block");
+    let plan = StepPlan { free: &free, keys: &keys, update: Update::PerTriangle { nbrs: &nbrs }, phase: &phase };
+    let stepped = ratio::ratio_steps(inputs, scene, &rows, state, &plan, progress)?;
+    ratio::bound_discards(round, stepped.work.discarded, stepped.work.paths)?;
+    Ok((looks, stepped.loss))
 }
 
 /// The paired test of `after` against `before` on an object's test pixels: each rendered twice at half of

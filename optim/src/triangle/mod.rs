@@ -181,6 +181,10 @@ pub struct RoundRecord {
     /// rounds, with the look off, and in results written before it.
     #[serde(default)]
     pub families: Vec<FamilyRecord>,
+    /// Mean per-channel |photo − render| over the switched objects' pixels at each ratio step after the lobe
+    /// family look (before its update); empty where nothing switched, and in results written before it.
+    #[serde(default)]
+    pub family_loss: Vec<f64>,
 }
 
 /// One object's lobe family look ([`family::Look`]), as the result records it.
@@ -288,8 +292,8 @@ pub struct TriangleSettings {
     /// A light cycle stops before `light_steps` once every emitter's averaged emission has at most this
     /// relative standard error ([`light::light_relative_se`]).
     pub light_precision: f64,
-    /// Ratio steps of the pass after each light cycle ([`light::refine_light`]), and of the pass after the lobe
-    /// family look when it switched some object ([`family`]).
+    /// Ratio steps of the pass after each light cycle ([`light::refine_light`]), and of the switched objects
+    /// after the lobe family look when it switched some ([`family`]).
     pub light_fit_steps: u32,
     /// Budget: pixels per object of the lobe family look after the final round's light re-solve ([`family`]),
     /// half of them, at most [`family::FIT_PIXELS`], to fit both families and the rest to test; 0 = no look.
@@ -512,6 +516,7 @@ pub fn run_rounds(
             seconds: 0.0,
             emission: state.emission.clone(),
             families: Vec::new(),
+            family_loss: Vec::new(),
         };
         progress.phase("round", u64::from(cfg.rounds) + 1, u64::from(state.rounds_done));
         progress.set_message(&format!("{} triangles, loss {:.4}", rec.triangles, fitted.loss.last().unwrap_or(&0.0)));
@@ -567,8 +572,8 @@ pub fn run_rounds(
                     if switched.is_empty() { String::new() } else { format!(" ({})", switched.join(", ")) }
                 ));
                 tracing::info!(round, looked = looks.len(), switched = switched.len(), "lobe family look");
-                rec.loss.extend(loss);
                 rec.families = looks.iter().map(FamilyRecord::from).collect();
+                rec.family_loss = loss;
             }
         }
         rec.seconds = started.elapsed().as_secs_f64();

@@ -393,8 +393,8 @@ pub fn fit_pass(
             cfg.spp
         )
     };
-    let plan =
-        StepPlan { free: &free, nbrs: &nbrs, keys: &keys, update: cfg.fit_steps > 0, one_factor: false, phase: &phase };
+    let update = if cfg.fit_steps > 0 { Update::PerTriangle { nbrs: &nbrs } } else { Update::RenderOnly };
+    let plan = StepPlan { free: &free, keys: &keys, update, phase: &phase };
     let Stepped { loss, residual, mut work } = ratio_steps(inputs, scene, samples, state, &plan, progress)?;
     if cfg.adam_iterations > 0 {
         super::adam::adam(inputs, scene, samples, state, &free, &nbrs, round, &mut work)?;
@@ -407,19 +407,25 @@ pub fn fit_pass(
     Ok(Fitted { loss, residual, free, traced_paths: work.paths, discarded_samples: work.discarded })
 }
 
+/// How a run of ratio steps ([`ratio_steps`]) moves the free triangles' base colours.
+pub(crate) enum Update<'a> {
+    /// Each free triangle by its own ratio, shrunk towards its object's ([`shrink_to_object`]), then the
+    /// smoothness solve over these [`neighbours`] of the state's mesh: a round's passes.
+    PerTriangle { nbrs: &'a [Vec<u32>] },
+    /// Each object's free triangles by one factor per channel ([`object_factor`]), their shape held: the lobe
+    /// family look's fits of one colour per object (no smoothing, so no neighbours).
+    OneFactor,
+    /// None: the steps only render, for the loss and residuals.
+    RenderOnly,
+}
+
 /// What a run of ratio steps ([`ratio_steps`]) updates and how it renders.
 pub(crate) struct StepPlan<'a> {
     /// Per triangle: its base colour is updated (else it stays, and neither smoothing nor shrinkage moves it).
     pub free: &'a [bool],
-    /// [`neighbours`] of the state's mesh.
-    pub nbrs: &'a [Vec<u32>],
     /// The render key of each step, one step per key.
     pub keys: &'a [u64],
-    /// Whether the steps update the base colours (else they only render, for the loss and residuals).
-    pub update: bool,
-    /// Whether each object's free triangles move by one factor per channel ([`object_factor`]), their shape
-    /// held, instead of each by its own ratio shrunk towards the object's.
-    pub one_factor: bool,
+    pub update: Update<'a>,
     /// The progress phase of step i (1-based) of a render's blocks.
     pub phase: &'a dyn Fn(usize) -> String,
 }
@@ -464,10 +470,11 @@ pub(crate) struct Stepped {
 }
 
 /// Ratio steps of the base colours of `plan.free` triangles on `samples` (the other triangles stay as they
-/// are): per step one render of the samples at `triangle.spp` paths with that step's key, each free triangle's
-/// ratio ρ·T/R shrunk towards its object's value ([`shrink_to_object`]), the smoothness solve and the
-/// per-object relaxation of reversing steps. The one body of a round's passes ([`fit_pass`]) and of the lobe
-/// family look's fits on an object's own pixels ([`super::family`]).
+/// are): per step one render of the samples at `triangle.spp` paths with that step's key, then the update
+/// `plan.update` names (each free triangle's ratio ρ·T/R shrunk towards its object's value
+/// ([`shrink_to_object`]) and the smoothness solve, or one factor per object) and the per-object relaxation of
+/// reversing steps. The one body of a round's passes ([`fit_pass`]) and of the lobe family look's fits and
+/// steps on its objects' own pixels ([`super::family`]).
 pub(crate) fn ratio_steps(
     inputs: &RoundInputs<'_>,
     scene: &tracer::Scene,
@@ -528,38 +535,41 @@ pub(crate) fn ratio_steps(
         }
         loss.push(l / samples.len().max(1) as f64);
         let mut rho = old.clone();
-        if plan.update {
-            let ratio: Vec<Vec3> = (0..n)
-                .map(|t| {
-                    let r = r_sum[t];
-                    let q = |c: usize| if r[c] > 0.0 { t_sum[t][c] / r[c] } else { 1.0 };
-                    (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
-                })
-                .collect();
-            let ratio = if plan.one_factor {
-                object_factor(&old, (&t_sum, &r_sum), free, &state.face_object, objects)
-            } else if SHRINK {
-                let evidence = Evidence {
-                    old: &old,
-                    t_sum: &t_sum,
-                    r_sum: &r_sum,
-                    d_sq: &d_sq,
-                    count: &count,
-                    interior: &interior,
-                    pooled: &pooled,
-                };
-                shrink_to_object(&ratio, &evidence, &state.face_object, free, state.emission.len())
-            } else {
-                ratio
-            };
-            if plan.one_factor {
+        match plan.update {
+            Update::RenderOnly => {}
+            Update::OneFactor => {
                 // One factor per object keeps its shape: nothing for the smoothness to do.
+                let ratio = object_factor(&old, (&t_sum, &r_sum), free, &state.face_object, objects);
                 for (t, r) in ratio.iter().enumerate().filter(|&(t, _)| free[t]) {
                     rho[t] = *r;
                 }
-            } else {
-                smooth_solve(&mut rho, &ratio, &count, plan.nbrs, free, cfg.smoothness);
             }
+            Update::PerTriangle { nbrs } => {
+                let ratio: Vec<Vec3> = (0..n)
+                    .map(|t| {
+                        let r = r_sum[t];
+                        let q = |c: usize| if r[c] > 0.0 { t_sum[t][c] / r[c] } else { 1.0 };
+                        (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
+                    })
+                    .collect();
+                let ratio = if SHRINK {
+                    let evidence = Evidence {
+                        old: &old,
+                        t_sum: &t_sum,
+                        r_sum: &r_sum,
+                        d_sq: &d_sq,
+                        count: &count,
+                        interior: &interior,
+                        pooled: &pooled,
+                    };
+                    shrink_to_object(&ratio, &evidence, &state.face_object, free, state.emission.len())
+                } else {
+                    ratio
+                };
+                smooth_solve(&mut rho, &ratio, &count, nbrs, free, cfg.smoothness);
+            }
+        }
+        if !matches!(plan.update, Update::RenderOnly) {
             relax_objects(&mut rho, &old, &count, free, &state.face_object, &mut relax, &mut last_step);
             for (m, r) in state.materials.iter_mut().zip(&rho) {
                 m.base_color = *r;
