@@ -19,8 +19,9 @@
 //!   pixels that straddle two triangles and the interreflections between objects. The ratios are combined with
 //!   the **smoothness regulariser** by solving `min Σ_t n_t (ρ_t − r_t)² + λ Σ_(t,u) (ρ_t − ρ_u)²` (n_t: the
 //!   triangle's pixels, pairs: triangles of one object sharing an edge, λ = `smoothness`) with Gauss–Seidel
-//!   sweeps: an unobserved triangle takes the mean of its neighbours, and a region nobody sees keeps the
-//!   object's value it started from. Emitting objects keep their per-object materials. Where an object's
+//!   sweeps: an unobserved triangle takes the mean of its neighbours, and a region nobody sees takes its
+//!   object's current value (`ratio::fill_unobserved`: the value the object's seen pixels give at that step,
+//!   not the one the stage started from). Emitting objects keep their per-object materials. Where an object's
 //!   steps reverse direction (a bright object lit by its own interreflections, whose value the whole step
 //!   overshoots), only a fraction of the step is taken, halved at each reversal (`ratio::relax_objects`).
 //! - **Light** ([`light::refine_light`]), once the mesh is final (the last round, or a round whose split

@@ -20,7 +20,7 @@ const MIN_INTERIOR: usize = 4;
 
 /// Gauss–Seidel sweeps of the smoothness solve. Observed triangles settle in a few sweeps (their data weight
 /// dominates); 64 sweeps carry a neighbour's value across ~8 unobserved triangles, beyond which a region keeps
-/// its starting (object) value — the intended fallback.
+/// the object's value it was given before the sweeps ([`fill_unobserved`]) — the intended fallback.
 const SMOOTH_SWEEPS: usize = 64;
 
 /// What a round's fit leaves for the split test.
@@ -223,36 +223,15 @@ impl Evidence<'_> {
     }
 }
 
-/// Empirical-Bayes (James–Stein) shrinkage of the per-triangle estimates `ratio` towards their object's pooled
-/// value: per object and channel, the prior mean m = ΣT / Σ(R/ρ) is the object-level ratio update over all the
-/// pixels that see the object alone ([`Pooled`]; one ratio of two large sums: the per-triangle ratio T_t/R_t has
-/// the noise of a few dozen pixels' renders in its denominator, which biases it upwards — E\[1/R\] > 1/E\[R\] —
-/// far more). Those pixels need not be interior to one triangle: a finely tessellated object (a sphere of
-/// 5 120 triangles in a few hundred pixels of a 430×344 photo) has hardly a triangle with clean evidence, and
-/// pooled over those alone it kept the object stage's value through every step and every light re-solve
-/// (docs/optim/design-measurements.md, "Objects tessellated finer than the pixels"). The
-/// estimates r_t have sampling variances v_t ([`Evidence::ratio_variance`]), and the spread of the true values
-/// τ² is what the estimates scatter beyond their noise (the method of moments with weights 1/v_t, as
-/// DerSimonian–Laird's, so that a triangle with a huge variance does not hide the others' spread). Each
-/// estimate becomes m + τ²/(τ² + v_t)·(r_t − m): on a uniform object (scatter explained by noise, τ² ≈ 0)
-/// every triangle keeps the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen
-/// in a single pixel (no measurable noise) or in fewer than `MIN_INTERIOR` interior pixels (its estimate rests
-/// on pixels shared with neighbours and absorbs their misfit) has no clean evidence of a difference: it takes
-/// m. Unobserved triangles (left to the smoothness solve) and those of emitting objects are unchanged. Only
-/// triangles with clean evidence enter τ²; an object with fewer than [`MIN_POOLED`] pooled pixels keeps its
-/// current value.
+/// Per object: its current value, from which [`shrink_to_object`] shrinks and which its unobserved triangles
+/// take ([`fill_unobserved`]): the object-level update m = ΣT / Σ(R/ρ) over its pooled pixels ([`Pooled`]) where
+/// it differs significantly from the pixel-weighted mean of its observed triangles' values, else that mean;
+/// `None` for an object none of whose free triangles has a pixel.
 #[must_use]
-pub fn shrink_to_object(
-    ratio: &[Vec3],
-    ev: &Evidence<'_>,
-    face_object: &[u32],
-    free: &[bool],
-    objects: usize,
-) -> Vec<Vec3> {
-    let var: Vec<Option<DVec3>> = (0..ratio.len()).map(|t| if free[t] { ev.ratio_variance(t) } else { None }).collect();
+pub fn object_values(ev: &Evidence<'_>, face_object: &[u32], free: &[bool], objects: usize) -> Vec<Option<DVec3>> {
     // The object's current value: the pixel-weighted mean of its triangles' values.
     let mut current = vec![(DVec3::ZERO, 0.0f64); objects];
-    for t in 0..ratio.len() {
+    for t in 0..ev.old.len() {
         if !free[t] || ev.count[t] <= 0.0 {
             continue;
         }
@@ -261,7 +240,7 @@ pub fn shrink_to_object(
         o.1 += ev.count[t];
     }
     debug_assert_eq!(ev.pooled.len(), objects, "one pooled sum per object");
-    let mean: Vec<Option<DVec3>> = current
+    current
         .iter()
         .zip(ev.pooled)
         .map(|(&(cur, n), p)| {
@@ -283,7 +262,56 @@ pub fn shrink_to_object(
             let z2 = ((m - cur) * (m - cur) / var_m.max(DVec3::splat(1e-300))).element_sum();
             Some(if z2 > CHI2_3_999 { m } else { cur })
         })
-        .collect();
+        .collect()
+}
+
+/// Sets every free triangle without a pixel of this step (`count` 0) to its object's value `mean` (where the
+/// object has one), before the smoothness solve: an object seen from one side (a sphere in one photo, a
+/// cabinet against a wall) has most of its surface in no photo, and the sweeps carry an observed neighbour's
+/// value only a few triangles into it, so without this the unseen surface kept the object stage's value
+/// whatever the observed part's fit found — the object's area-mean then mixed the two (on the corpus house a
+/// sphere seen in one photo: its observed tenth 0.20 / 0.22 / 0.24 for the truth's 0.22 / 0.22 / 0.23, the
+/// unseen nine tenths 0.13 / 0.10 / 0.10; docs/optim/design-measurements.md, "Unseen triangles take their
+/// object's value"). The solve then blends the boundary of the unseen region into its observed neighbours.
+pub fn fill_unobserved(rho: &mut [Vec3], count: &[f64], free: &[bool], face_object: &[u32], mean: &[Option<DVec3>]) {
+    for (t, r) in rho.iter_mut().enumerate() {
+        if free[t] && count[t] <= 0.0 {
+            if let Some(m) = mean.get(face_object[t] as usize).copied().flatten() {
+                *r = m.as_vec3();
+            }
+        }
+    }
+}
+
+/// Empirical-Bayes (James–Stein) shrinkage of the per-triangle estimates `ratio` towards their object's pooled
+/// value: per object and channel, the prior mean m = ΣT / Σ(R/ρ) is the object-level ratio update over all the
+/// pixels that see the object alone ([`Pooled`]; one ratio of two large sums: the per-triangle ratio T_t/R_t has
+/// the noise of a few dozen pixels' renders in its denominator, which biases it upwards — E\[1/R\] > 1/E\[R\] —
+/// far more). Those pixels need not be interior to one triangle: a finely tessellated object (a sphere of
+/// 5 120 triangles in a few hundred pixels of a 430×344 photo) has hardly a triangle with clean evidence, and
+/// pooled over those alone it kept the object stage's value through every step and every light re-solve
+/// (docs/optim/design-measurements.md, "Objects tessellated finer than the pixels"). The
+/// estimates r_t have sampling variances v_t ([`Evidence::ratio_variance`]), and the spread of the true values
+/// τ² is what the estimates scatter beyond their noise (the method of moments with weights 1/v_t, as
+/// DerSimonian–Laird's, so that a triangle with a huge variance does not hide the others' spread). Each
+/// estimate becomes m + τ²/(τ² + v_t)·(r_t − m): on a uniform object (scatter explained by noise, τ² ≈ 0)
+/// every triangle keeps the object's value; on a textured one (τ² ≫ v_t) each keeps its own. A triangle seen
+/// in a single pixel (no measurable noise) or in fewer than `MIN_INTERIOR` interior pixels (its estimate rests
+/// on pixels shared with neighbours and absorbs their misfit) has no clean evidence of a difference: it takes
+/// m. Unobserved triangles (given their object's value by [`fill_unobserved`], then the smoothness solve) and
+/// those of emitting objects are unchanged here. Only triangles with clean evidence enter τ². `mean` is each
+/// object's value from [`object_values`] (an object with fewer than [`MIN_POOLED`] pooled pixels keeps its
+/// current value).
+#[must_use]
+pub fn shrink_to_object(
+    ratio: &[Vec3],
+    ev: &Evidence<'_>,
+    face_object: &[u32],
+    free: &[bool],
+    mean: &[Option<DVec3>],
+) -> Vec<Vec3> {
+    let objects = mean.len();
+    let var: Vec<Option<DVec3>> = (0..ratio.len()).map(|t| if free[t] { ev.ratio_variance(t) } else { None }).collect();
     // τ² per object and channel by the method of moments with inverse-variance weights a_t = 1/v_t: each
     // E[(r_t − m)²] = v_t + τ², so Σ a_t (r_t − m)² has expectation k + τ²·Σ a_t (k triangles). The unweighted
     // mean of (r_t − m)² − v_t solves the same moments with equal weights, and is dominated by the few triangles
@@ -552,20 +580,19 @@ pub(crate) fn ratio_steps(
                         (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
                     })
                     .collect();
-                let ratio = if SHRINK {
-                    let evidence = Evidence {
-                        old: &old,
-                        t_sum: &t_sum,
-                        r_sum: &r_sum,
-                        d_sq: &d_sq,
-                        count: &count,
-                        interior: &interior,
-                        pooled: &pooled,
-                    };
-                    shrink_to_object(&ratio, &evidence, &state.face_object, free, state.emission.len())
-                } else {
-                    ratio
+                let evidence = Evidence {
+                    old: &old,
+                    t_sum: &t_sum,
+                    r_sum: &r_sum,
+                    d_sq: &d_sq,
+                    count: &count,
+                    interior: &interior,
+                    pooled: &pooled,
                 };
+                let mean = object_values(&evidence, &state.face_object, free, objects);
+                let ratio =
+                    if SHRINK { shrink_to_object(&ratio, &evidence, &state.face_object, free, &mean) } else { ratio };
+                fill_unobserved(&mut rho, &count, free, &state.face_object, &mean);
                 smooth_solve(&mut rho, &ratio, &count, nbrs, free, cfg.smoothness);
             }
         }
@@ -667,6 +694,36 @@ mod tests {
         assert!((rho[0].x - 0.2).abs() < 0.01, "{rho:?}");
     }
 
+    #[test]
+    fn an_unseen_region_takes_its_objects_value_and_its_edge_blends_into_the_seen_part() {
+        // Object 0 is a chain of 20 triangles, 0–3 seen (fitted to 0.2), 4–19 unseen at a stale 0.6 (the
+        // value the object started from); object 1 (triangle 20, unseen) has no value; triangle 21 of object 0
+        // is unseen but held (not free).
+        let n = 22;
+        let mut nbrs = vec![Vec::new(); n];
+        for t in 0..19 {
+            nbrs[t].push(t as u32 + 1);
+            nbrs[t + 1].push(t as u32);
+        }
+        let face_object: Vec<u32> = (0..n).map(|t| u32::from(t == 20)).collect();
+        let free: Vec<bool> = (0..n).map(|t| t != 21).collect();
+        let count: Vec<f64> = (0..n).map(|t| if t < 4 { 50.0 } else { 0.0 }).collect();
+        let ratio: Vec<Vec3> = (0..n).map(|t| Vec3::splat(if t < 4 { 0.2 } else { 0.6 })).collect();
+        let mut rho = vec![Vec3::splat(0.6); n];
+        let mean = [Some(DVec3::splat(0.2)), None];
+        fill_unobserved(&mut rho, &count, &free, &face_object, &mean);
+        smooth_solve(&mut rho, &ratio, &count, &nbrs, &free, 0.1);
+        for (t, r) in rho.iter().enumerate().take(20) {
+            assert!((r.x - 0.2).abs() < 1e-3, "triangle {t}: {r}");
+        }
+        assert_eq!((rho[20], rho[21]), (Vec3::splat(0.6), Vec3::splat(0.6)));
+        // Without the fill the sweeps carry the seen value only part of the way: the far end stays near the stale
+        // one (0.46 here).
+        let mut stale = vec![Vec3::splat(0.6); n];
+        smooth_solve(&mut stale, &ratio, &count, &nbrs, &free, 0.1);
+        assert!(stale[19].x > 0.4, "{}", stale[19]);
+    }
+
     /// Evidence of triangles that each saw 100 interior pixels with render = photo·ρ_old/ρ_true (so the ratio
     /// is the true value) and a pixel scatter giving ratio variance `v`.
     type Sums = (Vec<DVec3>, Vec<DVec3>, Vec<DVec3>, Vec<f64>, Vec<usize>);
@@ -723,7 +780,10 @@ mod tests {
         let ratio: Vec<Vec3> = [0.51, 0.49, 0.51, 0.49, 0.2, 0.8, 0.2, 0.8].iter().map(|&x| Vec3::splat(x)).collect();
         let face_object = [0, 0, 0, 0, 1, 1, 1, 1];
         let (v, out) = with_evidence(&old, &evidence(&old, &ratio, 1e-4), &face_object, 2, |ev| {
-            (ev.ratio_variance(0).unwrap(), shrink_to_object(&ratio, ev, &face_object, &[true; 8], 2))
+            (
+                ev.ratio_variance(0).unwrap(),
+                shrink_to_object(&ratio, ev, &face_object, &[true; 8], &object_values(ev, &face_object, &[true; 8], 2)),
+            )
         });
         assert!((v.x - 1e-4).abs() < 1e-9, "{v}");
         for t in 0..4 {
@@ -751,7 +811,7 @@ mod tests {
         ratio[8] = Vec3::splat(0.0);
         ratio[9] = Vec3::splat(1.0);
         let out = with_evidence(&old, &evidence_each(&old, &truth, &v), &[0; 10], 1, |ev| {
-            shrink_to_object(&ratio, ev, &[0; 10], &[true; 10], 1)
+            shrink_to_object(&ratio, ev, &[0; 10], &[true; 10], &object_values(ev, &[0; 10], &[true; 10], 1))
         });
         for t in 0..8 {
             assert!((out[t].x - truth[t].x).abs() < 1e-3, "triangle {t}: {out:?}");
@@ -793,13 +853,16 @@ mod tests {
             pooled: &pooled,
         };
         let ratio: Vec<Vec3> = (0..tris).map(|t| (old[t].as_dvec3() * t_sum[t] / r_sum[t]).as_vec3()).collect();
-        let out = shrink_to_object(&ratio, &ev, &vec![0; tris], &vec![true; tris], 1);
+        let (objects, free) = (vec![0; tris], vec![true; tris]);
+        let shrink =
+            |ev: &Evidence<'_>| shrink_to_object(&ratio, ev, &objects, &free, &object_values(ev, &objects, &free, 1));
+        let out = shrink(&ev);
         for (t, o) in out.iter().enumerate() {
             assert!((o.x - truth[t].x).abs() < 0.005, "triangle {t}: {o}");
         }
         // Fewer than MIN_POOLED pooled pixels: the object keeps its value.
         let few = [Pooled { n: MIN_POOLED - 1.0, ..pooled[0] }];
-        let out = shrink_to_object(&ratio, &Evidence { pooled: &few, ..ev }, &vec![0; tris], &vec![true; tris], 1);
+        let out = shrink(&Evidence { pooled: &few, ..ev });
         assert!(out.iter().all(|o| (o.x - 0.5).abs() < 1e-6), "{:?}", &out[..3]);
     }
 }
