@@ -563,7 +563,7 @@ pub fn run_rounds(
                     .filter(|l| l.kept)
                     .map(|l| match l.metal_roughness {
                         Some(r) => format!("object {} → metal (roughness {r:.2})", l.object),
-                        None => format!("object {} → Lambert", l.object),
+                        None => format!("object {} → dielectric", l.object),
                     })
                     .collect();
                 progress.note(&format!(
