@@ -10,7 +10,7 @@
 
 mod common;
 
-use optim::triangle::{RoundInputs, TriangleSettings, TriangleState, family, pixels, ratio};
+use optim::triangle::{TriangleState, family, pixels, ratio};
 use workflow::config::TriangleConfig;
 
 #[test]
@@ -122,18 +122,8 @@ fn pass_then_look(
     images: &[ingest::photo::LinearImage],
     state: &mut TriangleState,
 ) -> (Vec<family::Look>, Vec<f64>, TriangleState) {
-    let config = TriangleConfig::default();
-    let settings = TriangleSettings::from(&config);
-    let object = optim::fit::ObjectFitSettings::default();
-    let specular = vec![false; built.desc.objects.len()];
-    let inputs = RoundInputs {
-        cameras: &built.cameras,
-        images,
-        settings: &settings,
-        object: &object,
-        tracer: &built.settings,
-        specular: &specular,
-    };
+    let setup = common::RoundSetup::new(TriangleConfig::default(), built.desc.objects.len());
+    let (config, inputs) = (&setup.config, setup.inputs(built, images));
     let bar = optim::NoProgress;
     let scene = state.scene().unwrap();
     let n = state.triangles.len();

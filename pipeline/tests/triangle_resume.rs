@@ -7,8 +7,7 @@
 
 mod common;
 
-use optim::triangle::TriangleSettings;
-use optim::triangle::{RoundInputs, TriangleError, TriangleState, run_rounds};
+use optim::triangle::{TriangleError, TriangleState, run_rounds};
 use workflow::config::TriangleConfig;
 
 #[test]
@@ -21,17 +20,9 @@ fn a_run_resumed_from_a_round_checkpoint_ends_where_the_uninterrupted_run_ends()
     for e in &mut start.emission {
         *e *= 0.92;
     }
-    let config = TriangleConfig { rounds: 2, fit_steps: 2, spp: 8, ..TriangleConfig::default() };
-    let object = optim::fit::ObjectFitSettings::default();
-    let specular = vec![false; k];
-    let inputs = RoundInputs {
-        cameras: &built.cameras,
-        images: &images,
-        settings: &TriangleSettings::from(&config),
-        object: &object,
-        tracer: &built.settings,
-        specular: &specular,
-    };
+    let setup =
+        common::RoundSetup::new(TriangleConfig { rounds: 2, fit_steps: 2, spp: 8, ..TriangleConfig::default() }, k);
+    let inputs = setup.inputs(&built, &images);
     let bar = optim::NoProgress;
     let mut checkpoints: Vec<TriangleState> = Vec::new();
     let mut keep = |s: &TriangleState| -> Result<(), TriangleError> {

@@ -92,6 +92,26 @@ pub fn smooth_solve(rho: &mut [Vec3], ratio: &[Vec3], weight: &[f64], nbrs: &[Ve
 /// The smallest fraction of a ratio step an object takes after its steps alternate in sign.
 const MIN_RELAX: f64 = 1.0 / 16.0;
 
+/// The smallest base colour channel a free triangle is rendered with in a ratio step. The step ρ·T/R is
+/// multiplicative, so a channel at exactly 0 (an object stage that fitted a channel to its lower bound) stays 0
+/// whatever its photos say, and the object's pooled value leaves such triangles out ([`Pooled`]): on the
+/// corpus house a diffuse box of truth 0.16 / 0.28 / 0.20 came from the object stage at 0.00 / 0.009 / 0.25 and
+/// ended the stage with its red at 0 (docs/optim/design-measurements.md, "A base colour channel at 0"). Lifted to
+/// this floor, the channel's render carries its own diffuse share, and where that share dominates (R ≈ ρ·E) the
+/// next step lands on the photos' value in one step (0.01 → 0.16 is a ratio of 16); a ρ-independent part of
+/// the render (a specular lobe, a neighbour in a mixed pixel) slows it to a few steps. The step's result is not
+/// floored, so a surface darker than the floor still ends below it: its last step starts from 0.01, which
+/// bounds its error by 0.01, below the albedo noise of the stage's 32-path renders on a few-pixel triangle.
+const MIN_STEP_BASE: f32 = 0.01;
+
+/// Raises every free triangle's base colour channels to at least [`MIN_STEP_BASE`] before a ratio step renders
+/// them.
+fn lift_black_channels(materials: &mut [tracer::Material], free: &[bool]) {
+    for (m, _) in materials.iter_mut().zip(free).filter(|(_, f)| **f) {
+        m.base_color = m.base_color.max(Vec3::splat(MIN_STEP_BASE));
+    }
+}
+
 /// Under-relaxes the ratio step per object where it oscillates. The ratio step ρ·T/R divides by the render
 /// per unit of the triangle's *own* albedo, but when all triangles of an object move together the object's
 /// light on itself moves with them: on a white hall (albedo 0.9, lit mostly by its own interreflections) the
@@ -528,6 +548,9 @@ pub(crate) fn ratio_steps(
     let mut relax = vec![DVec3::ONE; objects];
     let mut last_step = vec![DVec3::ZERO; objects];
     for (i, &key) in plan.keys.iter().enumerate() {
+        if !matches!(plan.update, Update::RenderOnly) {
+            lift_black_channels(&mut state.materials, free);
+        }
         let params = state.params();
         let (values, stats) = crate::blocks::render_blocks(
             &tracer::Renderer::new(scene, &params, inputs.tracer)?,

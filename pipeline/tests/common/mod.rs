@@ -66,6 +66,39 @@ pub fn synth_scene(name: &str, spp: u32) -> (lab::synth::BuiltScene, Vec<ingest:
     (built, images)
 }
 
+/// A per-triangle round's settings for a test, owned: `config` as given, the object fit's defaults and no
+/// specular object; [`RoundSetup::inputs`] lends them with a built scene as a round's inputs.
+pub struct RoundSetup {
+    pub config: workflow::config::TriangleConfig,
+    settings: optim::triangle::TriangleSettings,
+    object: optim::fit::ObjectFitSettings,
+    specular: Vec<bool>,
+}
+
+impl RoundSetup {
+    /// `config` for a scene of `objects` objects.
+    pub fn new(config: workflow::config::TriangleConfig, objects: usize) -> Self {
+        let settings = optim::triangle::TriangleSettings::from(&config);
+        Self { config, settings, object: optim::fit::ObjectFitSettings::default(), specular: vec![false; objects] }
+    }
+
+    /// A round's inputs on `built` and its photos `images`.
+    pub fn inputs<'a>(
+        &'a self,
+        built: &'a lab::synth::BuiltScene,
+        images: &'a [ingest::photo::LinearImage],
+    ) -> optim::triangle::RoundInputs<'a> {
+        optim::triangle::RoundInputs {
+            cameras: &built.cameras,
+            images,
+            settings: &self.settings,
+            object: &self.object,
+            tracer: &built.settings,
+            specular: &self.specular,
+        }
+    }
+}
+
 /// A progress that asks to stop once it is armed (by [`StopAfter::arm`], or by the start of a phase whose name
 /// begins with `arm_on_phase`) and two more positions have been reported; it counts the positions reported
 /// after it first said so, which a prompt stop keeps at 0.
