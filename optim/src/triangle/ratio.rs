@@ -500,7 +500,8 @@ fn object_factor(
                 return old[t];
             }
             let (ts, rs) = sums[face_object[t] as usize];
-            // A channel the renders put at 0 (no pixel, or a black start) has no ratio: its value stays.
+            // A channel the renders put at 0 (no pixel, or no light of that colour on the object; a black base
+            // colour is not one, being rendered at MIN_STEP_BASE) has no ratio: its value stays.
             let q = |c: usize| if rs[c] > 0.0 { ts[c] / rs[c] } else { 1.0 };
             (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
         })
