@@ -110,7 +110,10 @@ impl AveragedSteps {
         for step in 1..=self.steps {
             check_stop(progress)?;
             let key = self.key + u64::from(step);
-            let samples = solve_samples(sets, s, ctx.seed, key);
+            let samples = match self.unknowns {
+                Unknowns::EmissionAndBaseColor => solve::joint_samples(sets, s, ctx.seed, key),
+                Unknowns::Emission => solve_samples(sets, s, ctx.seed, key),
+            };
             let start = x.to_vec();
             solve_step_pinned(ctx, x, &samples, s.solve_spp, key, free, no_emission, &opts)?;
             // Checked like the refinement's steps (`step_check`): unchecked, a re-fit after a dropped

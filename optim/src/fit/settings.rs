@@ -55,7 +55,8 @@ pub struct ObjectFitSettings {
     /// Pixels in the closed-form emission solve and the Gauss–Newton refinement: 32 per object (and for the
     /// pixels that see no object), the rest in proportion to the objects' training pixels, each weighted by its
     /// object's share of the training pixels (`fit::pixels::draw_stratified`); with more than
-    /// `solve_pixels / 32` objects a solve draws 32 per object, more than `solve_pixels`.
+    /// `solve_pixels / 32` objects a solve draws 32 per object, more than `solve_pixels`. A joint step on
+    /// emission and base colour draws at least 64 per object on average (`fit::solve::joint_samples`).
     pub solve_pixels: u32,
     /// Paths per pixel of each Jacobian column / value in the solves; a solve that draws more than
     /// `solve_pixels` rows (32 per object) renders its emission columns with `solve_spp · solve_pixels` paths

@@ -50,3 +50,16 @@ pub(crate) const SOLVE_FLOOR: usize = 32;
 pub(crate) fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> WeightedDraw {
     sets.draw_train_stratified(s.solve_pixels as usize, SOLVE_FLOOR, seed, draw::SOLVE_PIXELS, key)
 }
+
+/// Solve pixels of a joint step (emission and base colour together: the refinement and the model-selection
+/// re-fits): as [`solve_samples`], but at least twice the floors' total, the second half shared by pixel count.
+/// A joint step has three base-colour unknowns per object besides the lights, and with the floor alone its
+/// draw of rows, not its paths, set where the step lands: on the 213-object house, re-fits from one state at
+/// 32 rows per object × 128 paths ended at object-level albedo L1 0.058–0.064, at × 512 paths 0.054, and with
+/// as many rows again by pixel count at 0.042–0.046 for 1.6× the time (docs/optim/design-measurements.md,
+/// "Rows, not paths, for the joint steps"). On a scan of few objects `solve_pixels` already exceeds this and the
+/// draw is [`solve_samples`]'s.
+pub(crate) fn joint_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> WeightedDraw {
+    let rows = (s.solve_pixels as usize).max(2 * SOLVE_FLOOR * sets.strata.len());
+    sets.draw_train_stratified(rows, SOLVE_FLOOR, seed, draw::SOLVE_PIXELS, key)
+}
