@@ -464,9 +464,15 @@ pub(crate) fn trace_columns(
         // first and its record prefetched, then the points are drawn and connected: with hundreds of columns
         // the records are scattered over the scene's memory, and read one after another each waited for its
         // own cache miss (most of a house's basis render: docs/optim/design-measurements.md, "Basis renders
-        // that wait on memory, and solves on one core").
+        // that wait on memory, and solves on one core"). The picks' own reads (a slot's guide entries, then
+        // the cdf entries they bracket) are prefetched the same way, one pass over the columns per level: a
+        // pick read them as two dependent misses, column after column, half of a house's emission solves
+        // (docs/optim/design-measurements.md, "Light picks that wait on their tables").
         let (u_slot, u_tri) = (rng.get(dim), rng.get(dim + 1));
         let u_point = Vec2::new(rng.get(dim + 2), rng.get(dim + 3));
+        let slots = || cols.samplers.iter().filter_map(|sampler| sampler.slot(u_slot));
+        slots().for_each(|slot| scene.prefetch_emitter_guide(slot, f64::from(u_tri)));
+        slots().for_each(|slot| scene.prefetch_emitter_cdf(slot, f64::from(u_tri)));
         picks.clear();
         picks.extend(cols.samplers.iter().map(|sampler| {
             let pick = sampler.pick(scene, u_slot, u_tri);

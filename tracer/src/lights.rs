@@ -104,14 +104,23 @@ impl LightSampler {
     #[inline]
     #[must_use]
     pub fn pick(&self, scene: &Scene, u_slot: f32, u_tri: f32) -> Option<LightPick> {
+        let slot = self.slot(u_slot)?;
+        let tri = scene.sample_emitter_triangle(slot, f64::from(u_tri))?;
+        Some(LightPick { tri, pdf_area: self.prob_per_area[slot as usize] as f32 })
+    }
+
+    /// The emitter slot that [`LightSampler::pick`] draws with `u_slot` (None when nothing emits): read from
+    /// the sampler's own table, not the scene's, so a caller can prefetch the scene's tables for the pick
+    /// ([`Scene::prefetch_emitter_guide`]) before making it.
+    #[inline]
+    #[must_use]
+    pub fn slot(&self, u_slot: f32) -> Option<u32> {
         if self.slots.is_empty() {
             return None;
         }
         let u = f64::from(u_slot);
         let i = self.cdf.partition_point(|&c| c <= u).min(self.slots.len() - 1);
-        let slot = self.slots[i];
-        let tri = scene.sample_emitter_triangle(slot, f64::from(u_tri))?;
-        Some(LightPick { tri, pdf_area: self.prob_per_area[slot as usize] as f32 })
+        Some(self.slots[i])
     }
 }
 

@@ -234,6 +234,48 @@ impl Scene {
         Some(cdf[k].tri)
     }
 
+    /// Starts loading what [`Scene::sample_emitter_triangle`]`(slot, u)` reads first — the guide entries of
+    /// u's bucket (or the slot's one entry) — without waiting for it. Stage 1 of a batch of picks: a caller
+    /// that picks a triangle of each of many slots at one vertex (a basis render's columns) issues stage 1
+    /// for all of them, then [`Scene::prefetch_emitter_cdf`] for all, then the picks, so that the picks' two
+    /// dependent cache misses overlap across slots instead of following one another. Reads nothing that is
+    /// not already in cache (the slot's bounds), and never fails: a slot out of range does nothing.
+    #[inline]
+    pub fn prefetch_emitter_guide(&self, slot: u32, u: f64) {
+        let Some(start) = self.slot_start.get(slot as usize).copied() else { return };
+        let Some(end) = self.slot_start.get(slot as usize + 1).copied() else { return };
+        let n = end.saturating_sub(start);
+        if n == 1 {
+            if let Some(e) = self.slot_cdf.get(start) {
+                crate::embree::prefetch(e);
+            }
+        } else if n > 1 {
+            if let Some(g) = self.slot_guide.get(start + slot as usize + guide_bucket(u, n)) {
+                crate::embree::prefetch(g);
+            }
+        }
+    }
+
+    /// Stage 2 of a batch of picks ([`Scene::prefetch_emitter_guide`]): reads the guide entries of u's bucket
+    /// and starts loading the cdf entries that bracket it (the first and last that
+    /// [`Scene::sample_emitter_triangle`] compares), without waiting for them. Never fails.
+    #[inline]
+    pub fn prefetch_emitter_cdf(&self, slot: u32, u: f64) {
+        let Some(start) = self.slot_start.get(slot as usize).copied() else { return };
+        let Some(end) = self.slot_start.get(slot as usize + 1).copied() else { return };
+        let n = end.saturating_sub(start);
+        if n <= 1 {
+            return;
+        }
+        let at = start + slot as usize + guide_bucket(u, n);
+        let (Some(&lo), Some(&hi)) = (self.slot_guide.get(at), self.slot_guide.get(at + 1)) else { return };
+        for i in [(lo as usize).saturating_sub(1), (hi as usize).min(n - 1)] {
+            if let Some(e) = self.slot_cdf.get(start + i) {
+                crate::embree::prefetch(e);
+            }
+        }
+    }
+
     #[must_use]
     pub fn emitter_of_tri(&self) -> &[u32] {
         &self.emitter_of_tri
@@ -334,14 +376,20 @@ fn guide_table<T>(entries: &[T], cdf: impl Fn(&T) -> f64) -> Vec<u32> {
         .collect()
 }
 
+/// The guide-table bucket of a draw u over a cdf of n entries: ⌊u·n⌋ within 0..n. `as usize` saturates, so a
+/// negative or NaN u gives bucket 0, which [`guided_partition_point`] then rejects or confirms.
+#[inline]
+fn guide_bucket(u: f64, n: usize) -> usize {
+    ((u * n as f64) as usize).min(n.saturating_sub(1))
+}
+
 /// `entries.partition_point(|e| cdf(e) <= u)`, exactly, searched only between the two entries of `guide`
 /// ([`guide_table`]) that bracket u. Where they do not (u rounded onto a bucket's edge, or u outside [0, 1)),
 /// all entries are searched.
 #[inline]
 fn guided_partition_point<T>(entries: &[T], cdf: impl Fn(&T) -> f64, guide: &[u32], u: f64) -> usize {
     let n = entries.len();
-    // `as usize` saturates: a negative or NaN u gives bucket 0, which the checks below then reject or confirm.
-    let g = ((u * n as f64) as usize).min(n.saturating_sub(1));
+    let g = guide_bucket(u, n);
     let (lo, hi) = (guide[g] as usize, (guide[g + 1] as usize).min(n));
     // The cdf does not decrease: every entry before the answer is ≤ u and every entry from it on is > u, so
     // these checks put the answer in lo..=hi.
