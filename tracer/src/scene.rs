@@ -219,16 +219,16 @@ impl Scene {
     #[inline]
     #[must_use]
     pub fn sample_emitter_triangle(&self, slot: u32, u: f64) -> Option<u32> {
-        let range = self.slot_start[slot as usize]..self.slot_start[slot as usize + 1];
         let area = self.slot_area[slot as usize];
-        if range.is_empty() || area.is_nan() || area <= 0.0 {
+        let SlotTables { start, n, guide } = self.slot_tables(slot)?;
+        if n == 0 || area.is_nan() || area <= 0.0 {
             return None;
         }
-        if range.len() == 1 {
-            return Some(self.slot_cdf[range.start].tri);
+        if n == 1 {
+            return Some(self.slot_cdf[start].tri);
         }
-        let cdf = &self.slot_cdf[range.clone()];
-        let guide = &self.slot_guide[range.start + slot as usize..][..=cdf.len()];
+        let cdf = &self.slot_cdf[start..start + n];
+        let guide = &self.slot_guide[guide..][..=n];
         // Zero-area triangles have an empty cdf interval and so are never chosen by the strict comparison.
         let k = guided_partition_point(cdf, CdfEntry::cdf, guide, u).min(cdf.len() - 1);
         Some(cdf[k].tri)
@@ -242,15 +242,13 @@ impl Scene {
     /// not already in cache (the slot's bounds), and never fails: a slot out of range does nothing.
     #[inline]
     pub fn prefetch_emitter_guide(&self, slot: u32, u: f64) {
-        let Some(start) = self.slot_start.get(slot as usize).copied() else { return };
-        let Some(end) = self.slot_start.get(slot as usize + 1).copied() else { return };
-        let n = end.saturating_sub(start);
+        let Some(SlotTables { start, n, guide }) = self.slot_tables(slot) else { return };
         if n == 1 {
             if let Some(e) = self.slot_cdf.get(start) {
                 crate::embree::prefetch(e);
             }
         } else if n > 1 {
-            if let Some(g) = self.slot_guide.get(start + slot as usize + guide_bucket(u, n)) {
+            if let Some(g) = self.slot_guide.get(guide + guide_bucket(u, n)) {
                 crate::embree::prefetch(g);
             }
         }
@@ -261,19 +259,27 @@ impl Scene {
     /// [`Scene::sample_emitter_triangle`] compares), without waiting for them. Never fails.
     #[inline]
     pub fn prefetch_emitter_cdf(&self, slot: u32, u: f64) {
-        let Some(start) = self.slot_start.get(slot as usize).copied() else { return };
-        let Some(end) = self.slot_start.get(slot as usize + 1).copied() else { return };
-        let n = end.saturating_sub(start);
+        let Some(SlotTables { start, n, guide }) = self.slot_tables(slot) else { return };
         if n <= 1 {
             return;
         }
-        let at = start + slot as usize + guide_bucket(u, n);
+        let at = guide + guide_bucket(u, n);
         let (Some(&lo), Some(&hi)) = (self.slot_guide.get(at), self.slot_guide.get(at + 1)) else { return };
         for i in [(lo as usize).saturating_sub(1), (hi as usize).min(n - 1)] {
             if let Some(e) = self.slot_cdf.get(start + i) {
                 crate::embree::prefetch(e);
             }
         }
+    }
+
+    /// Where the pick tables of emitter slot `slot` live ([`SlotTables`]), read by `get` so that the
+    /// prefetches stay infallible: None for a slot out of range.
+    #[inline]
+    fn slot_tables(&self, slot: u32) -> Option<SlotTables> {
+        let start = *self.slot_start.get(slot as usize)?;
+        let end = *self.slot_start.get(slot as usize + 1)?;
+        // Each slot's guide has one entry more than its cdf, so slot s's guide starts s entries after its cdf.
+        Some(SlotTables { start, n: end.saturating_sub(start), guide: start + slot as usize })
     }
 
     #[must_use]
@@ -374,6 +380,15 @@ fn guide_table<T>(entries: &[T], cdf: impl Fn(&T) -> f64) -> Vec<u32> {
             entries.partition_point(|e| cdf(e) <= at) as u32
         })
         .collect()
+}
+
+/// One emitter slot's pick tables: its cdf entries `slot_cdf[start..start + n]` and its guide entries
+/// `slot_guide[guide..=guide + n]` ([`guide_table`]).
+#[derive(Debug, Clone, Copy)]
+struct SlotTables {
+    start: usize,
+    n: usize,
+    guide: usize,
 }
 
 /// The guide-table bucket of a draw u over a cdf of n entries: ⌊u·n⌋ within 0..n. `as usize` saturates, so a

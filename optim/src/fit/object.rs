@@ -9,7 +9,7 @@ use super::pixels::{self, PixelSets};
 use super::prior::UnseenPrior;
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
-use super::solve::{MIN_PIXELS, joint_samples, solve_options, solve_samples};
+use super::solve::{MIN_PIXELS, solve_options, solve_samples, step_samples};
 use super::{
     FitError, FitInputs, FitMode, FitOutcome, FitState, IterationRecord, ObjectFitSettings, ObjectModel, select,
     step_check,
@@ -264,7 +264,7 @@ pub fn fit_objects(
             record(&state.params, it, "adam", loss, lr)
         } else {
             let key = key::REFINE + u64::from(it);
-            let samples = joint_samples(&sets, s, s.seed, key);
+            let samples = step_samples(&sets, s, Unknowns::EmissionAndBaseColor, s.seed, key);
             let opts = solve_options(s, Unknowns::EmissionAndBaseColor);
             let start = state.params.clone();
             let loss =

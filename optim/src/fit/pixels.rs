@@ -97,6 +97,14 @@ impl PixelSets {
     pub fn draw_train_stratified(&self, n: usize, floor: usize, seed: u64, stream: u64, draw_key: u64) -> WeightedDraw {
         draw_strata(&self.train, &self.strata, n, floor, seed, stream, draw_key)
     }
+
+    /// Pixel sets whose training pool is all of `train` (each stratum's population its pixels in it), without
+    /// held-out pixels: for tests of the draws.
+    #[cfg(test)]
+    pub(crate) fn of_train(train: Vec<Sample>) -> PixelSets {
+        let strata = strata_of(&train, |_| 0);
+        PixelSets { train, strata, ..Default::default() }
+    }
 }
 
 /// A pixel offered to a [`Pool`]: ordered by its seeded rank, then by its position in the scan.

@@ -34,7 +34,7 @@ use super::paired::{
 };
 use super::pixels::{PixelSets, Sample};
 use super::roughness::{self, TRIAL_ROUGHNESS, TRIAL_SPECULAR, lobe_test_samples, profile_samples};
-use super::solve::{self, solve_options, solve_samples};
+use super::solve::{self, solve_options};
 use super::step_check;
 use super::{FitError, ObjectFitSettings, ObjectModel};
 use crate::progress::check_stop;
@@ -110,10 +110,7 @@ impl AveragedSteps {
         for step in 1..=self.steps {
             check_stop(progress)?;
             let key = self.key + u64::from(step);
-            let samples = match self.unknowns {
-                Unknowns::EmissionAndBaseColor => solve::joint_samples(sets, s, ctx.seed, key),
-                Unknowns::Emission => solve_samples(sets, s, ctx.seed, key),
-            };
+            let samples = solve::step_samples(sets, s, self.unknowns, ctx.seed, key);
             let start = x.to_vec();
             solve_step_pinned(ctx, x, &samples, s.solve_spp, key, free, no_emission, &opts)?;
             // Checked like the refinement's steps (`step_check`): unchecked, a re-fit after a dropped

@@ -51,6 +51,21 @@ pub(crate) fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, 
     sets.draw_train_stratified(s.solve_pixels as usize, SOLVE_FLOOR, seed, draw::SOLVE_PIXELS, key)
 }
 
+/// Solve pixels of a linearised step on `unknowns` with random-number key `key`: [`solve_samples`] for a step on
+/// the emission alone, [`joint_samples`] for a step on emission and base colour together.
+pub(crate) fn step_samples(
+    sets: &PixelSets,
+    s: &ObjectFitSettings,
+    unknowns: Unknowns,
+    seed: u64,
+    key: u64,
+) -> WeightedDraw {
+    match unknowns {
+        Unknowns::Emission => solve_samples(sets, s, seed, key),
+        Unknowns::EmissionAndBaseColor => joint_samples(sets, s, seed, key),
+    }
+}
+
 /// Solve pixels of a joint step (emission and base colour together: the refinement and the model-selection
 /// re-fits): as [`solve_samples`], but at least twice the floors' total, the second half shared by pixel count.
 /// A joint step has three base-colour unknowns per object besides the lights, and with the floor alone its
@@ -59,7 +74,54 @@ pub(crate) fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, 
 /// as many rows again by pixel count at 0.042–0.046 for 1.6× the time (docs/optim/design-measurements.md,
 /// "Rows, not paths, for the joint steps"). On a scan of few objects `solve_pixels` already exceeds this and the
 /// draw is [`solve_samples`]'s.
-pub(crate) fn joint_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> WeightedDraw {
+fn joint_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> WeightedDraw {
     let rows = (s.solve_pixels as usize).max(2 * SOLVE_FLOOR * sets.strata.len());
     sets.draw_train_stratified(rows, SOLVE_FLOOR, seed, draw::SOLVE_PIXELS, key)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::pixels::Sample;
+    use glam::Vec3;
+    use tracer::PixelRef;
+
+    /// Training pixels of `objects` objects, object k seen by 400 + 10·k of them, and 400 that see no object.
+    fn sets(objects: u32) -> PixelSets {
+        let sample = |view: u32, x: u32, object: Option<u32>| Sample {
+            pixel: PixelRef { view, x, y: 0 },
+            target: Vec3::ONE,
+            object,
+        };
+        let mut train: Vec<Sample> =
+            (0..objects).flat_map(|k| (0..400 + 10 * k).map(move |x| sample(k, x, Some(k)))).collect();
+        train.extend((0..400).map(|x| sample(objects, x, None)));
+        PixelSets::of_train(train)
+    }
+
+    /// A step on the emission draws `solve_pixels` rows or the floors' total, whichever is larger; a joint step
+    /// at least twice the floors' total, every stratum with at least its floor; on a scan of few objects both
+    /// draw the same rows.
+    #[test]
+    fn a_joint_step_draws_twice_the_floors_and_few_objects_draw_as_an_emission_step() {
+        let s = ObjectFitSettings::default();
+        let (seed, key) = (3, 11);
+        for objects in [5u32, 40, 200] {
+            let sets = sets(objects);
+            let strata = sets.strata.len();
+            assert_eq!(strata, objects as usize + 1);
+            let emission = step_samples(&sets, &s, Unknowns::Emission, seed, key);
+            let joint = step_samples(&sets, &s, Unknowns::EmissionAndBaseColor, seed, key);
+            let solve_pixels = s.solve_pixels as usize;
+            assert_eq!(emission.samples.len(), solve_pixels.max(SOLVE_FLOOR * strata), "{objects} objects");
+            assert_eq!(joint.samples.len(), solve_pixels.max(2 * SOLVE_FLOOR * strata), "{objects} objects");
+            for st in &sets.strata {
+                let got = joint.samples.iter().filter(|t| t.object == st.object).count();
+                assert!(got >= SOLVE_FLOOR.min(st.population), "{objects} objects, {:?}: {got} rows", st.object);
+            }
+            if 2 * SOLVE_FLOOR * strata <= solve_pixels {
+                assert_eq!(joint, emission, "{objects} objects");
+            }
+        }
+    }
 }
