@@ -8,7 +8,8 @@
 //! values. So the profile loss
 //! `P(r) = min over (ρ, s) of the L1 residual on the object's pixels` is cheap: one value render at r, one
 //! Jacobian pass for (ρ_rgb, s), and a 4-variable box-constrained IRLS solve. `P` is searched on a coarse grid
-//! and refined by golden-section search, every evaluation with the same random numbers (common random
+//! and refined by Brent's method (parabolas through the best points, golden sections where a parabola does not
+//! help), every evaluation with the same random numbers (common random
 //! numbers: the Monte Carlo noise of P(r) is then a smooth function of r instead of independent jitter, so the
 //! search does not chase it).
 //!
@@ -32,11 +33,24 @@ pub const GRID: [f64; 7] = [0.04, 0.12, 0.22, 0.33, 0.45, 0.62, 0.85];
 /// smoothly with its width α = r², so a profile that varies by less than 0.5 % between r = 0.04 and 0.22 and
 /// on to 0.85 does not dip by more in between. A diffuse wall's search then costs 4 evaluations instead of 7.
 pub const COARSE: [usize; 4] = [0, 2, 4, 6];
-/// Golden-section steps inside the bracket around the best grid point: the bracket (at most 0.4 wide) shrinks
-/// by 0.618 per step, to < 0.023 after 6 steps, so the chosen point is within ~0.012 of the bracket's
-/// minimum — well below the required roughness tolerance of 0.05.
+/// Golden-section steps of the search on metallic ([`search_lobe`]): the bracket [0, 1] shrinks by 0.618 per
+/// step, to < 0.06 after 6 steps.
 pub const GOLDEN_STEPS: usize = 6;
-/// The golden-section refinement is skipped when the profile loss varies over the grid by less than this
+/// Most evaluations of the roughness refinement inside the bracket around the best grid point ([`brent`]).
+/// Its first step is the vertex of the parabola through the best grid point and its two neighbours, all
+/// already evaluated, where a golden section spends two evaluations before it narrows anything; near a smooth
+/// minimum each further parabola gains more than a golden section's factor 0.618, and a golden section is
+/// taken wherever a parabola would not shrink the bracket. Golden sections alone took 8 evaluations for a
+/// bracket of < 0.023 (0.4 · 0.618⁷), half of the lobe search's evaluations on the corpus house (137 of its
+/// 196 objects refined). On smooth profiles with their minimum anywhere in [0.01, 0.99] (the test below) this
+/// ends within 0.012 of it after 3.8 evaluations on average, 5 at most (a minimum within 0.04 of the
+/// domain's top, where no parabola brackets it). The profile's own noise (a glossy floor's roughness
+/// 0.68–0.78 for a true 0.8 between runs) is far above the last steps' gains.
+pub const REFINE_EVALS: usize = 5;
+/// The refinement stops once the minimum is bracketed within ±2 · this (a roughness tolerance of 0.05 is
+/// what the fit is asked for): smaller steps would chase the profile's noise.
+const REFINE_TOL: f64 = 0.01;
+/// The refinement is skipped when the profile loss varies over the grid by less than this
 /// fraction of the mean |target| of the object's pixels: roughness then does not matter to the photos (a
 /// diffuse wall's best lobe is weak, its grid spread measured at 0.1–0.3 %; the glossy fixture's floor and
 /// box spread 5–20 %), and the lobe, if any, is judged at the best grid point. Halves the search's cost.
@@ -308,7 +322,7 @@ pub const RATIO_STEPS: usize = 2;
 /// ratio step cannot leave 0) and the first step's render is neither dim nor saturated.
 pub const RATIO_FROM: f64 = 0.5;
 
-/// Minimises the profile loss of object `k` over roughness: the coarse [`GRID`], then golden-section search
+/// Minimises the profile loss of object `k` over roughness: the coarse [`GRID`], then Brent's method ([`brent`])
 /// between the neighbours of its best point. Returns the best point and every evaluation (for the record).
 pub fn search(
     ctx: &Ctx<'_>,
@@ -321,8 +335,8 @@ pub fn search(
     search_up_to(ctx, x, k, samples, spp, key, 1.0)
 }
 
-/// [`search`] over the roughness range [0, `top`]: the grid points up to `top`, and a golden-section bracket
-/// that ends at `top` when the best grid point is the last of them.
+/// [`search`] over the roughness range [0, `top`]: the grid points up to `top`, and a refinement bracket that
+/// ends at `top` when the best grid point is the last of them.
 pub fn search_up_to(
     ctx: &Ctx<'_>,
     x: &[f64],
@@ -332,14 +346,22 @@ pub fn search_up_to(
     key: u64,
     top: f64,
 ) -> Result<(ProfilePoint, Vec<ProfilePoint>), TracerError> {
+    search_profile(top, mean_target(samples), |r| profile(ctx, x, k, r, samples, spp, key))
+}
+
+/// The search of [`search_up_to`] over the profile `profile_at(r)`, whose losses are relative to `mean_target`.
+fn search_profile(
+    top: f64,
+    mean_target: f64,
+    mut profile_at: impl FnMut(f64) -> Result<ProfilePoint, TracerError>,
+) -> Result<(ProfilePoint, Vec<ProfilePoint>), TracerError> {
     let n_grid = GRID.iter().take_while(|&&r| r <= top).count().max(1);
     let mut evals = Vec::new();
-    let eval = |r: f64, evals: &mut Vec<ProfilePoint>| -> Result<ProfilePoint, TracerError> {
-        let p = profile(ctx, x, k, r, samples, spp, key)?;
+    let mut eval = |r: f64, evals: &mut Vec<ProfilePoint>| -> Result<ProfilePoint, TracerError> {
+        let p = profile_at(r)?;
         evals.push(p);
         Ok(p)
     };
-    let mean_target = mean_target(samples);
     // The coarse points first; the others only where the profile is not flat over them.
     let mut grid: Vec<Option<ProfilePoint>> = vec![None; n_grid];
     for &i in COARSE.iter().filter(|&&i| i < n_grid) {
@@ -362,8 +384,103 @@ pub fn search_up_to(
     }
     let lo = if best == 0 { 0.0 } else { GRID[best - 1] };
     let hi = if best + 1 < n_grid { GRID[best + 1] } else { top.min(1.0) };
-    golden(lo, hi, |r| eval(r, &mut evals))?;
+    // Brent's first parabola goes through the best grid point and its neighbours in the bracket. At an end of
+    // the grid the bracket's other end is the domain's, not evaluated, and the first step is a golden section
+    // (a parabola through the next grid points, all on one side of the minimum, lands far from it).
+    let at = |p: &ProfilePoint| (p.roughness, p.loss);
+    let mut near: Vec<(f64, f64)> =
+        done.iter().filter(|(i, p)| *i != best && (lo..=hi).contains(&p.roughness)).map(|(_, p)| at(p)).collect();
+    near.sort_by(|a, b| (a.0 - best_point.roughness).abs().total_cmp(&(b.0 - best_point.roughness).abs()));
+    let x = at(&best_point);
+    let w = near.first().copied().unwrap_or(x);
+    let v = near.get(1).copied().unwrap_or(w);
+    let open = (best == 0, best + 1 == n_grid);
+    brent((lo, hi), open, (x, w, v), |r| eval(r, &mut evals).map(|p| p.loss))?;
     Ok((lowest(&evals).unwrap_or(best_point), evals))
+}
+
+/// Brent's minimisation of `eval` over the bracket `[a, b]` (the minimiser of Brent, *Algorithms for
+/// Minimization without Derivatives*, 1973, ch. 5, as in Numerical Recipes' `brent`), from evaluated points
+/// given as (position, value): `x` the lowest, in the bracket or on its edge, and `w`, `v` the next lowest
+/// (equal to `x` when there are none). An end of the bracket is `open` when it is an end of the domain that was
+/// not evaluated: the minimum may lie on it, so steps may come as close to it as they like (a known end is
+/// higher than `x`, and steps keep 2 · [`REFINE_TOL`] from it). At most [`REFINE_EVALS`] evaluations, fewer
+/// once the minimum is bracketed within ±2 · [`REFINE_TOL`]; the caller keeps every evaluation and takes the
+/// best.
+fn brent(
+    (mut a, mut b): (f64, f64),
+    (mut open_a, mut open_b): (bool, bool),
+    (mut x, mut w, mut v): ((f64, f64), (f64, f64), (f64, f64)),
+    mut eval: impl FnMut(f64) -> Result<f64, TracerError>,
+) -> Result<(), TracerError> {
+    const CGOLD: f64 = 0.381_966_011_250_105_1;
+    let tol2 = 2.0 * REFINE_TOL;
+    // The step before last: a parabola is taken only if it moves less than half of it, which is what makes
+    // the method converge where parabolas do not. Starting at the bracket's width lets the first parabola,
+    // through points already evaluated, be taken.
+    let mut e = b - a;
+    let mut d = 0.0f64;
+    for _ in 0..REFINE_EVALS {
+        let xm = 0.5 * (a + b);
+        if (x.0 - xm).abs() <= tol2 - 0.5 * (b - a) {
+            break;
+        }
+        // The vertex of the parabola through x, w and v, as the step p / q from x.
+        let parabola = (e.abs() > REFINE_TOL)
+            .then(|| {
+                let r = (x.0 - w.0) * (x.1 - v.1);
+                let q = (x.0 - v.0) * (x.1 - w.1);
+                let p = (x.0 - v.0) * q - (x.0 - w.0) * r;
+                let q = 2.0 * (q - r);
+                let (p, q) = if q > 0.0 { (-p, q) } else { (p, -q) };
+                // Taken when it moves less than half the step before last and lands inside the bracket (a
+                // degenerate parabola, q = 0, never is).
+                (p.abs() < (0.5 * q * e).abs() && p > q * (a - x.0) && p < q * (b - x.0)).then(|| p / q)
+            })
+            .flatten();
+        d = match parabola {
+            Some(step) => {
+                e = d;
+                let u = x.0 + step;
+                // Not within the tolerance of a known end of the bracket, which is higher.
+                if (u - a < tol2 && !open_a) || (b - u < tol2 && !open_b) {
+                    REFINE_TOL.copysign(xm - x.0)
+                } else {
+                    step
+                }
+            }
+            None => {
+                // A golden section of the larger side.
+                e = if x.0 >= xm { a - x.0 } else { b - x.0 };
+                CGOLD * e
+            }
+        };
+        let u = if d.abs() >= REFINE_TOL { x.0 + d } else { x.0 + REFINE_TOL.copysign(d) };
+        let fu = eval(u)?;
+        if fu <= x.1 {
+            if u >= x.0 {
+                (a, open_a) = (x.0, false);
+            } else {
+                (b, open_b) = (x.0, false);
+            }
+            v = w;
+            w = x;
+            x = (u, fu);
+        } else {
+            if u < x.0 {
+                (a, open_a) = (u, false);
+            } else {
+                (b, open_b) = (u, false);
+            }
+            if fu <= w.1 || w.0 == x.0 {
+                v = w;
+                w = (u, fu);
+            } else if fu <= v.1 || v.0 == x.0 || v.0 == w.0 {
+                v = (u, fu);
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Mean per-channel |target| of the object's pixels, which the profile's thresholds are relative to.
@@ -497,6 +614,55 @@ mod tests {
             rms: None,
         }
     }
+
+    /// The search on smooth profiles with their minimum anywhere in the range, over [0, 1] and up to the metal
+    /// search's top: a bowl (quadratic), one in log roughness, a cusp (|r − r*|^1.5) and a GGX-like lobe width
+    /// profile (a bell in α = r², wider for rough minima). It ends within 2 · [`REFINE_TOL`] of the minimum (the
+    /// golden sections it replaces ended within 0.004 after 8 evaluations; the fit's roughness tolerance is
+    /// 0.05), with at most the grid and [`REFINE_EVALS`] evaluations, fewer than 4.5 after the grid on average
+    /// (parabolas, not golden sections, do most of the work), and with 4 on a flat profile.
+    #[test]
+    fn the_search_finds_a_smooth_profiles_minimum_within_its_tolerance() {
+        type Shape = fn(f64, f64) -> f64;
+        let shapes: [(&str, Shape); 4] = [
+            ("bowl", |r, m| (r - m).powi(2)),
+            ("log", |r, m| (r.max(1e-3) / m).ln().powi(2)),
+            ("cusp", |r, m| (r - m).abs().powf(1.5)),
+            ("lobe width", |r, m| 1.0 - (-((r * r - m * m) / (0.1 + m * m)).powi(2)).exp()),
+        ];
+        let point_at = |r: f64, loss: f64| ProfilePoint { roughness: r, loss, ..point(0.0, loss) };
+        let (mut refined, mut searches) = (0, 0);
+        for (name, shape) in shapes {
+            for top in [1.0, METAL_ROUGHEST_FOR_TESTS] {
+                for i in 1..100 {
+                    let m = f64::from(i) / 100.0;
+                    if m > top {
+                        continue;
+                    }
+                    // Losses of 0.1 and more over a mean target of 1: never flat.
+                    let (best, evals) =
+                        search_profile(top, 1.0, |r| Ok(point_at(r, 0.1 + shape(r, m)))).expect("no render fails");
+                    assert!(
+                        (best.roughness - m).abs() <= 2.0 * REFINE_TOL,
+                        "{name}, top {top}: {} for {m}",
+                        best.roughness
+                    );
+                    let grid = GRID.iter().filter(|&&r| r <= top).count();
+                    assert!(evals.len() <= grid + REFINE_EVALS, "{name}: {} evaluations", evals.len());
+                    refined += evals.len() - grid;
+                    searches += 1;
+                    assert!(evals.iter().all(|p| (0.0..=top).contains(&p.roughness)), "{name}: outside [0, {top}]");
+                }
+            }
+        }
+        let mean = refined as f64 / f64::from(searches);
+        assert!(mean < 4.5, "{mean} refinement evaluations per search");
+        let (_, evals) = search_profile(1.0, 1.0, |r| Ok(point_at(r, 0.1 + 1e-4 * r))).expect("no render fails");
+        assert_eq!(evals.len(), COARSE.len(), "a flat profile is evaluated at the coarse points only");
+    }
+
+    /// The roughest metal the second look searches (`family::METAL_ROUGHEST`), a grid point.
+    const METAL_ROUGHEST_FOR_TESTS: f64 = GRID[5];
 
     #[test]
     fn a_blend_is_chosen_only_where_it_lowers_the_profile_by_the_flat_margin() {
