@@ -31,7 +31,7 @@ const METAL_PROBES: [f64; 2] = [roughness::GRID[2], roughness::GRID[4]];
 /// walls and boxes of the corpus house preferred a metal by 5–85× [`roughness::FLAT_PROFILE`], absorbing what the
 /// room's light got wrong, and the lobe test kept 8 of them (docs/optim/design-measurements.md, "A metal probe for
 /// dielectrics below their bound").
-const METAL_ROUGHEST: f64 = roughness::GRID[5];
+pub(super) const METAL_ROUGHEST: f64 = roughness::GRID[5];
 /// What the metal tests compare per pixel: the metal, the noisier of the two models, passes on the L1 of two
 /// half-path renders' mean or on their unbiased squared error ([`Statistic::L1OrSquaredError`]). With the L1
 /// alone, which the renders' noise inflates the more the brighter and sharper the lobe, the metals started

@@ -9,7 +9,7 @@ use super::pixels::{self, PixelSets};
 use super::prior::UnseenPrior;
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
-use super::solve::{MIN_PIXELS, solve_options, solve_samples, step_samples};
+use super::solve::{MIN_PIXELS, solve_options, step_samples};
 use super::{
     FitError, FitInputs, FitMode, FitOutcome, FitState, IterationRecord, ObjectFitSettings, ObjectModel, select,
     step_check,
@@ -211,7 +211,7 @@ pub fn fit_objects(
         None => {
             let mut x = layout::initial(k_count);
             let opts = solve_options(s, Unknowns::Emission);
-            let samples = solve_samples(&sets, s, s.seed, key::SOLVE);
+            let samples = step_samples(&sets, s, Unknowns::Emission, s.seed, key::SOLVE);
             solve_step_pinned(&ctx, &mut x, &samples, s.solve_spp, key::SOLVE, &free, &no_emission, &opts)?;
             FitState {
                 iteration: 0,
@@ -249,7 +249,7 @@ pub fn fit_objects(
                 // The solve costs as much as hundreds of iterations on a large scan: say so while it runs.
                 progress.set_message("emission solve");
                 let key = key::SOLVE + u64::from(it);
-                let samples = solve_samples(&sets, s, s.seed, key);
+                let samples = step_samples(&sets, s, Unknowns::Emission, s.seed, key);
                 solve_step_pinned(
                     &ctx,
                     &mut state.params,
@@ -354,7 +354,7 @@ pub fn fit_objects(
     let unseen = if inputs.mode == FitMode::Full { prior.unseen() } else { Vec::new() };
     if !unseen.is_empty() {
         progress.phase(&format!("unseen objects: standard errors of {} base colours, step", unseen.len()), 1, 0);
-        let draw = solve_samples(&sets, s, s.seed, key::UNSEEN_PRIOR);
+        let draw = step_samples(&sets, s, Unknowns::Emission, s.seed, key::UNSEEN_PRIOR);
         let averaged = (s.refine_steps - s.refine_steps / 2) as usize;
         let se = super::prior::standard_errors(&ctx, &x, &draw, s.solve_spp, key::UNSEEN_PRIOR, &unseen, averaged)?;
         progress.set_position(1);

@@ -633,7 +633,7 @@ mod tests {
         let point_at = |r: f64, loss: f64| ProfilePoint { roughness: r, loss, ..point(0.0, loss) };
         let (mut refined, mut searches) = (0, 0);
         for (name, shape) in shapes {
-            for top in [1.0, METAL_ROUGHEST_FOR_TESTS] {
+            for top in [1.0, super::super::family::METAL_ROUGHEST] {
                 for i in 1..100 {
                     let m = f64::from(i) / 100.0;
                     if m > top {
@@ -660,9 +660,6 @@ mod tests {
         let (_, evals) = search_profile(1.0, 1.0, |r| Ok(point_at(r, 0.1 + 1e-4 * r))).expect("no render fails");
         assert_eq!(evals.len(), COARSE.len(), "a flat profile is evaluated at the coarse points only");
     }
-
-    /// The roughest metal the second look searches (`family::METAL_ROUGHEST`), a grid point.
-    const METAL_ROUGHEST_FOR_TESTS: f64 = GRID[5];
 
     #[test]
     fn a_blend_is_chosen_only_where_it_lowers_the_profile_by_the_flat_margin() {

@@ -47,7 +47,7 @@ pub(crate) const SOLVE_FLOOR: usize = 32;
 /// Solve pixels of solve number `key`: [`SOLVE_FLOOR`] training pixels per object, the rest of `solve_pixels`
 /// in proportion to the objects' training pixels, weighted so that every solve's data term is an unbiased
 /// estimate of the loss over all training pixels ([`pixels::draw_stratified`]).
-pub(crate) fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> WeightedDraw {
+fn solve_samples(sets: &PixelSets, s: &ObjectFitSettings, seed: u64, key: u64) -> WeightedDraw {
     sets.draw_train_stratified(s.solve_pixels as usize, SOLVE_FLOOR, seed, draw::SOLVE_PIXELS, key)
 }
 
