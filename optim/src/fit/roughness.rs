@@ -633,7 +633,7 @@ mod tests {
         let point_at = |r: f64, loss: f64| ProfilePoint { roughness: r, loss, ..point(0.0, loss) };
         let (mut refined, mut searches) = (0, 0);
         for (name, shape) in shapes {
-            for top in [1.0, super::super::family::METAL_ROUGHEST] {
+            for top in [1.0, crate::fit::family::METAL_ROUGHEST] {
                 for i in 1..100 {
                     let m = f64::from(i) / 100.0;
                     if m > top {
