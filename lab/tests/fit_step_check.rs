@@ -110,6 +110,14 @@ fn a_step_that_harms_one_object_holds_back_only_that_object() {
     eprintln!("object {small} ({} training pixels) harmed: {check:?}", sets.train_per_object[small]);
     assert!(check.fractions[small] < check.fraction, "{check:?}");
     assert_eq!(check.held_back(), 1, "{check:?}");
+    // Every row is rendered at the start, at the whole step and once more to confirm what the rounds that pull
+    // the small object back decided; those rounds (at least one, at most `HALVINGS`) render only its own rows.
+    assert_eq!(check.fraction, 1.0, "the step as a whole is better: {check:?}");
+    let rows = draw.samples.len() as u64;
+    let own = draw.samples.iter().filter(|s| s.object == Some(small as u32)).count() as u64;
+    let f = check.fractions[small];
+    let rounds = if f == 0.0 { u64::from(HALVINGS) } else { (-f.log2()).round() as u64 };
+    assert_eq!(counter.paths(), (3 * rows + rounds * own) * 64, "{rounds} rounds: {check:?}");
     for k in (0..k_count).filter(|&k| k != small) {
         for p in 0..PER_OBJECT {
             let i = idx(k, p);

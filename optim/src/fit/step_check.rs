@@ -20,7 +20,11 @@
 //! weigh little against a thousand others in the paired mean, and its gross misfit inflates the standard error
 //! as much as the mean. So each object's own rows are also compared alone, and an object significantly worse
 //! on them ([`WORSE_T_OBJECT`]) has its share of the step (its parameters) pulled halfway back, up to the same
-//! number of times, and then returns to its start; the other objects keep theirs.
+//! number of times, and then returns to its start; the other objects keep theirs. Such a round renders again
+//! only the pulled-back objects' own rows (the other rows keep their values from the round before, which the
+//! pulled-back shares move only through interreflection), and what the rounds decide is confirmed by one render
+//! of every row at the same fractions before the step is taken, so the step taken meets both tests on a full
+//! render (docs/optim/design-measurements.md, "Step checks that render only the objects they pull back").
 
 use super::jacobian::Ctx;
 use super::layout;
@@ -119,9 +123,22 @@ pub fn check_step(
     let mut fraction = 1.0;
     let mut fractions = vec![1.0; k_count];
     let mut rounds = 0;
+    // The rows' values at the fractions last tried, and the rows the next round renders again: all of them
+    // after a change of the common fraction, only the pulled-back objects' own rows after a per-object round
+    // (a pixel's paths are keyed by the pixel, so a row rendered alone is the row rendered with all the others).
+    let mut v: Vec<glam::Vec3> = Vec::new();
+    let mut only: Option<Vec<usize>> = None;
     loop {
         place(x, &fractions);
-        let v = ctx.render(&ctx.params(x), &pixels, spp, key)?;
+        let partial = only.is_some();
+        match only.take() {
+            None => v = ctx.render(&ctx.params(x), &pixels, spp, key)?,
+            Some(rows) => {
+                let some: Vec<PixelRef> = rows.iter().map(|&j| pixels[j]).collect();
+                let values = ctx.render(&ctx.params(x), &some, spp, key)?;
+                rows.iter().zip(values).for_each(|(&j, value)| v[j] = value);
+            }
+        }
         let l1 = per_row(&std::array::from_fn(|c| residuals(&v, c)));
         let loss_taken = l1.iter().sum::<f64>() / (3 * m.max(1)) as f64;
         let diff: Vec<f64> = l1.iter().zip(&l0).map(|(a, b)| a - b).collect();
@@ -137,6 +154,11 @@ pub fn check_step(
                 })
                 .collect()
         };
+        // A round on some rows only goes on pulling objects back; every other decision waits for a render of
+        // every row at the same fractions.
+        if partial && !(t <= WORSE_T && !worse.is_empty() && rounds < HALVINGS) {
+            continue;
+        }
         if t <= WORSE_T && worse.is_empty() {
             return Ok(StepCheck { fraction, fractions, loss_start, loss_taken });
         }
@@ -162,6 +184,7 @@ pub fn check_step(
             fractions.iter_mut().for_each(|f| *f = f.min(fraction));
         } else {
             worse.iter().for_each(|&k| fractions[k] *= 0.5);
+            only = Some(worse.iter().flat_map(|&k| rows_of[k].iter().copied()).collect());
         }
     }
 }
