@@ -23,8 +23,10 @@
 //! number of times, and then returns to its start; the other objects keep theirs. Such a round renders again
 //! only the pulled-back objects' own rows (the other rows keep their values from the round before, which the
 //! pulled-back shares move only through interreflection), and what the rounds decide is confirmed by one render
-//! of every row at the same fractions before the step is taken, so the step taken meets both tests on a full
-//! render (docs/optim/design-measurements.md, "Step checks that render only the objects they pull back").
+//! of every row at the same fractions before it is acted on: the step is taken, or cut back as a whole, on a full
+//! render, and objects still worse after the last halving return to their start without another render, as
+//! they did before (docs/optim/design-measurements.md, "Step checks that render only the objects they pull
+//! back").
 
 use super::jacobian::Ctx;
 use super::layout;
