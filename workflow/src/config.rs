@@ -295,6 +295,11 @@ pub struct TriangleConfig {
     pub spp: u32,
     /// Budget: pixels per triangle per round (a uniform sample of its pixels when it has more).
     pub pixels_per_triangle: u32,
+    /// Budget: paths per triangle of each ratio step's render: a triangle's pixels are rendered at fewer
+    /// than `spp` paths each (at least 1) where they would take more; 0 = every pixel at `spp`.
+    pub paths_per_triangle: u32,
+    /// … as long as each object's pixels keep at least this many paths in all (up to `spp` each).
+    pub paths_per_object: u32,
     /// Adam iterations per fit after the closed-form steps (batches of `object.batch_pixels` pixels,
     /// `object.n_value`/`object.n_grad` paths, the object stage's loss); 0 = closed form only.
     pub adam_iterations: u32,
@@ -345,6 +350,12 @@ impl Default for TriangleConfig {
             // house scan (docs/optim/design-measurements.md, "Budgets of the decisions and of the
             // per-triangle stage").
             pixels_per_triangle: 4096,
+            // A ratio step's value of a triangle rests on all its pixels' paths together: on the 1280×1024 timing
+            // house a round's pass traced 64 % of its paths with these two, for albedo L1 0.0332 against 0.0328;
+            // without the object floor 58 % and 0.0337, walls of 2 triangles up to 0.02 off
+            // (docs/optim/design-measurements.md, "Paths per triangle in the ratio steps").
+            paths_per_triangle: 8192,
+            paths_per_object: 262_144,
             adam_iterations: 0,
             adam_lr: 0.01,
             smoothness: 0.1,

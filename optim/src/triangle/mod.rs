@@ -16,7 +16,10 @@
 //!   linear in its own base colour (a planar triangle does not light itself), so with the current value ρ,
 //!   the photo sum T and the rendered sum R over its pixels, ρ·T/R is the value that matches them; repeated
 //!   (`fit_steps`) it is a Jacobi iteration whose fixed point is T = R for every triangle, which also settles
-//!   pixels that straddle two triangles and the interreflections between objects. The ratios are combined with
+//!   pixels that straddle two triangles and the interreflections between objects. R's noise in the update is
+//!   set by the paths the triangle gets in all, so a triangle's pixels are rendered at `spp` paths each, or at
+//!   fewer (at least 1) where they would take more than `paths_per_triangle`, as long as their object keeps
+//!   `paths_per_object` in all ([`ratio::paths_per_pixel`]). The ratios are combined with
 //!   the **smoothness regulariser** by solving `min Σ_t n_t (ρ_t − r_t)² + λ Σ_(t,u) (ρ_t − ρ_u)²` (n_t: the
 //!   triangle's pixels, pairs: triangles of one object sharing an edge, λ = `smoothness`) with Gauss–Seidel
 //!   sweeps: an unobserved triangle takes the mean of its neighbours, and a region nobody sees takes its
@@ -269,6 +272,11 @@ pub struct TriangleSettings {
     /// Budget: pixels per triangle (a uniform sample of its pixels when it has more), so a round's renders
     /// cost at most this × triangles pixels whatever the photos' number and resolution.
     pub pixels_per_triangle: u32,
+    /// Budget: paths per triangle of a ratio step's render (its pixels at fewer than `spp` paths each where
+    /// they would take more, at least 1 each; [`ratio::paths_per_pixel`]); 0 = every pixel at `spp`.
+    pub paths_per_triangle: u32,
+    /// … but an object's pixels take at least this many paths in all (up to `spp` each).
+    pub paths_per_object: u32,
     /// Adam iterations per fit after the closed-form steps (batches of `object.batch_pixels` pixels,
     /// `object.n_value`/`object.n_grad` paths, the object stage's loss); 0 = closed form only.
     pub adam_iterations: u32,

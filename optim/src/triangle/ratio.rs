@@ -437,7 +437,7 @@ pub fn fit_pass(
     let (n, steps, pixels) = (state.triangles.len(), keys.len(), samples.len());
     let phase = |i: usize| {
         format!(
-            "round {round}: ratio step {i}/{steps} of pass {pass} ({n} triangles, {pixels} pixels at {} paths), block",
+            "round {round}: ratio step {i}/{steps} of pass {pass} ({n} triangles, {pixels} pixels at ≤ {} paths), block",
             cfg.spp
         )
     };
@@ -478,34 +478,30 @@ pub(crate) struct StepPlan<'a> {
     pub phase: &'a dyn Fn(usize) -> String,
 }
 
-/// Per free triangle: its value times its object's photo sum over render sum (over the pixels the steps use on
-/// the object's free triangles), per channel: the ratio step of an object with one colour, or of a texture whose
-/// shape is held. Other triangles keep their value.
+/// Per free triangle: its value in `old` times its object's photo sum over render sum (over the pixels the steps
+/// use on the object's free triangles), per channel, written to `out`: the ratio step of an object with one
+/// colour, or of a texture whose shape is held. Other triangles' entries of `out` are left as they are.
 fn object_factor(
     old: &[Vec3],
     (t_sum, r_sum): (&[DVec3], &[DVec3]),
     free: &[bool],
     face_object: &[u32],
     objects: usize,
-) -> Vec<Vec3> {
+    out: &mut [Vec3],
+) {
     let mut sums = vec![(DVec3::ZERO, DVec3::ZERO); objects];
     for t in (0..old.len()).filter(|&t| free[t]) {
         let s = &mut sums[face_object[t] as usize];
         s.0 += t_sum[t];
         s.1 += r_sum[t];
     }
-    (0..old.len())
-        .map(|t| {
-            if !free[t] {
-                return old[t];
-            }
-            let (ts, rs) = sums[face_object[t] as usize];
-            // A channel the renders put at 0 (no pixel, or no light of that colour on the object; a black base
-            // colour is not one, being rendered at MIN_STEP_BASE) has no ratio: its value stays.
-            let q = |c: usize| if rs[c] > 0.0 { ts[c] / rs[c] } else { 1.0 };
-            (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
-        })
-        .collect()
+    for t in (0..old.len()).filter(|&t| free[t]) {
+        let (ts, rs) = sums[face_object[t] as usize];
+        // A channel the renders put at 0 (no pixel, or no light of that colour on the object; a black base
+        // colour is not one, being rendered at MIN_STEP_BASE) has no ratio: its value stays.
+        let q = |c: usize| if rs[c] > 0.0 { ts[c] / rs[c] } else { 1.0 };
+        out[t] = (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE);
+    }
 }
 
 /// What a run of ratio steps leaves: the loss before each update, the residuals against the render predicted
@@ -518,8 +514,50 @@ pub(crate) struct Stepped {
     pub work: tracer::TraceStats,
 }
 
+/// Paths per pixel of each sample in a ratio step: `spp`, or fewer for the samples of a triangle with n samples
+/// whose object has N: ⌊`per_triangle` / n⌋ or ⌈`per_object` / N⌉, whichever is more, at least 1; a
+/// `per_triangle` of 0 renders every sample at `spp`. A step sets a triangle's value from its photo and render
+/// sums over all its pixels, so the render's noise in that value is set by the paths the triangle gets in all,
+/// not per pixel: a wall triangle's 4096 pixels at 32 paths each traced 64 times the paths of a 64-pixel
+/// triangle for the same kind of estimate. The object's value, which the shrinkage pulls its uniform triangles
+/// to, rests on all its pixels' paths, and an object of a few large triangles (a wall of 2) would have only the
+/// few triangles' budgets, so each object keeps at least `per_object` paths. Every pixel keeps at least one
+/// path, so the photo's side of the sums (its texture and noise) is still averaged over all of them, and within
+/// a triangle the count is one, so the split test's pixels stay alike in their noise.
+#[must_use]
+pub fn paths_per_pixel(samples: &[TriSample], face_object: &[u32], objects: usize, budget: &PathBudget) -> Vec<u32> {
+    let spp = budget.spp.max(1);
+    if budget.per_triangle == 0 {
+        return vec![spp; samples.len()];
+    }
+    let mut of_triangle = vec![0u32; face_object.len()];
+    let mut of_object = vec![0u32; objects];
+    for s in samples {
+        of_triangle[s.tri as usize] += 1;
+        of_object[face_object[s.tri as usize] as usize] += 1;
+    }
+    samples
+        .iter()
+        .map(|s| {
+            let n = of_triangle[s.tri as usize].max(1);
+            let big_n = of_object[face_object[s.tri as usize] as usize].max(1);
+            (budget.per_triangle / n).max(budget.per_object.div_ceil(big_n)).clamp(1, spp)
+        })
+        .collect()
+}
+
+/// What bounds a ratio step's paths ([`paths_per_pixel`]): `triangle.spp`, `triangle.paths_per_triangle` and
+/// `triangle.paths_per_object`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PathBudget {
+    pub spp: u32,
+    pub per_triangle: u32,
+    pub per_object: u32,
+}
+
 /// Ratio steps of the base colours of `plan.free` triangles on `samples` (the other triangles stay as they
-/// are): per step one render of the samples at `triangle.spp` paths with that step's key, then the update
+/// are): per step one render of the samples at `triangle.spp` paths ([`paths_per_pixel`]: fewer on a triangle
+/// whose samples would take more than its budget) with that step's key, then the update
 /// `plan.update` names (each free triangle's ratio ρ·T/R shrunk towards its object's value
 /// ([`shrink_to_object`]) and the smoothness solve, or one factor per object) and the per-object relaxation of
 /// reversing steps. The one body of a round's passes ([`fit_pass`]) and of the lobe family look's fits and
@@ -541,6 +579,8 @@ pub(crate) fn ratio_steps(
     }
     let used = |s: &TriSample| s.interior || interior[s.tri as usize] < MIN_INTERIOR;
     let pix: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
+    let budget = PathBudget { spp: cfg.spp, per_triangle: cfg.paths_per_triangle, per_object: cfg.paths_per_object };
+    let spp = paths_per_pixel(samples, &state.face_object, state.emission.len(), &budget);
     let mut loss = Vec::new();
     let mut residual = vec![Vec3::ZERO; samples.len()];
     let mut work = tracer::TraceStats::default();
@@ -548,27 +588,40 @@ pub(crate) fn ratio_steps(
     let objects = state.emission.len();
     let mut relax = vec![DVec3::ONE; objects];
     let mut last_step = vec![DVec3::ZERO; objects];
+    // The per-triangle buffers of every step, allocated once: the lobe family look takes a dozen steps per
+    // object on a few hundred pixels, and fresh buffers of a house's 521 362 triangles each step made the
+    // kernel's page faults and zeroing about a third of its time (docs/optim/design-measurements.md, "Paths per
+    // triangle in the ratio steps"). A step changes only the base colours: emission and horizon stay.
+    let mut params = state.params();
+    let mut t_sum = vec![DVec3::ZERO; n];
+    let mut r_sum = vec![DVec3::ZERO; n];
+    let mut d_sq = vec![DVec3::ZERO; n];
+    let mut count = vec![0f64; n];
+    let mut old = vec![Vec3::ZERO; n];
+    let mut rho = vec![Vec3::ZERO; n];
     for (i, &key) in plan.keys.iter().enumerate() {
         if !matches!(plan.update, Update::RenderOnly) {
             lift_black_channels(&mut state.materials, free);
         }
-        let params = state.params();
-        let (values, stats) = crate::blocks::render_blocks(
+        params.materials.copy_from_slice(&state.materials);
+        let (values, stats) = crate::blocks::render_blocks_each(
             &tracer::Renderer::new(scene, &params, inputs.tracer)?,
             inputs.cameras,
             &pix,
-            cfg.spp,
+            &spp,
             cfg.seed,
             key,
             progress,
             &(plan.phase)(i + 1),
         )?;
         work.add(&stats);
-        let mut t_sum = vec![DVec3::ZERO; n];
-        let mut r_sum = vec![DVec3::ZERO; n];
-        let mut d_sq = vec![DVec3::ZERO; n];
-        let mut count = vec![0f64; n];
-        let old: Vec<Vec3> = state.materials.iter().map(|m| m.base_color).collect();
+        t_sum.fill(DVec3::ZERO);
+        r_sum.fill(DVec3::ZERO);
+        d_sq.fill(DVec3::ZERO);
+        count.fill(0.0);
+        for (o, m) in old.iter_mut().zip(&state.materials) {
+            *o = m.base_color;
+        }
         let mut pooled = vec![Pooled::default(); objects];
         let mut l = 0.0;
         for (s, v) in samples.iter().zip(&values) {
@@ -586,15 +639,12 @@ pub(crate) fn ratio_steps(
             }
         }
         loss.push(l / samples.len().max(1) as f64);
-        let mut rho = old.clone();
+        rho.copy_from_slice(&old);
         match plan.update {
             Update::RenderOnly => {}
             Update::OneFactor => {
                 // One factor per object keeps its shape: nothing for the smoothness to do.
-                let ratio = object_factor(&old, (&t_sum, &r_sum), free, &state.face_object, objects);
-                for (t, r) in ratio.iter().enumerate().filter(|&(t, _)| free[t]) {
-                    rho[t] = *r;
-                }
+                object_factor(&old, (&t_sum, &r_sum), free, &state.face_object, objects, &mut rho);
             }
             Update::PerTriangle { nbrs } => {
                 let ratio: Vec<Vec3> = (0..n)
@@ -641,6 +691,44 @@ pub(crate) fn ratio_steps(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_triangle_with_many_pixels_takes_fewer_paths_each_within_its_budget() {
+        let sample = |tri: u32| TriSample {
+            pixel: PixelRef { view: 0, x: 0, y: 0 },
+            target: Vec3::ZERO,
+            tri,
+            child: 0,
+            interior: true,
+            on_object: true,
+            bary: glam::Vec2::ZERO,
+        };
+        // Triangle 0: 10 pixels, 1: 100, 2: 1000, 3: 100 000, each its own object; triangles 4 and 5 share
+        // object 4 with 2000 pixels each; triangle 6 has none.
+        let counts = [(0, 10), (1, 100), (2, 1000), (3, 100_000), (4, 2000), (5, 2000)];
+        let samples: Vec<TriSample> = counts.iter().flat_map(|&(t, n)| (0..n).map(move |_| sample(t))).collect();
+        let face_object = [0, 1, 2, 3, 4, 4, 5];
+        let of = |spp: &[u32], t: u32| spp[samples.iter().position(|s| s.tri == t).expect("sample")];
+        let paths =
+            |spp: &[u32], t: u32| -> u32 { samples.iter().zip(spp).filter(|(s, _)| s.tri == t).map(|(_, &n)| n).sum() };
+        // Without an object floor: below the triangle's budget every pixel keeps `spp`, above it ⌊8192 / n⌋, at
+        // least 1, and no triangle takes more than the budget unless one path per pixel is more.
+        let budget = PathBudget { spp: 32, per_triangle: 8192, per_object: 0 };
+        let spp = paths_per_pixel(&samples, &face_object, 6, &budget);
+        assert_eq!([0, 1, 2, 3, 4].map(|t| of(&spp, t)), [32, 32, 8, 1, 4]);
+        for &(t, n) in &counts {
+            assert!(paths(&spp, t) <= 8192.max(n), "triangle {t}: {} paths", paths(&spp, t));
+        }
+        // An object floor of 32 768 paths: object 4's 4000 pixels take ⌈32 768 / 4000⌉ = 9 each, more than
+        // their triangles' 4; the others are above it already, or at `spp`.
+        let budget = PathBudget { per_object: 32_768, ..budget };
+        let spp = paths_per_pixel(&samples, &face_object, 6, &budget);
+        assert_eq!([0, 1, 2, 3, 4, 5].map(|t| of(&spp, t)), [32, 32, 32, 1, 9, 9]);
+        assert!(paths(&spp, 4) + paths(&spp, 5) >= 32_768);
+        // A triangle budget of 0: no bound.
+        let none = PathBudget { per_triangle: 0, ..budget };
+        assert!(paths_per_pixel(&samples, &face_object, 6, &none).iter().all(|&n| n == 32));
+    }
 
     #[test]
     fn the_passes_of_a_round_number_their_steps_on_without_overlap() {
@@ -694,13 +782,15 @@ mod tests {
         let old = vec![Vec3::splat(0.2), Vec3::splat(0.4), Vec3::splat(0.5), Vec3::splat(0.3)];
         let t_sum = vec![DVec3::splat(2.0), DVec3::splat(6.0), DVec3::splat(1.0), DVec3::ZERO];
         let r_sum = vec![DVec3::splat(1.0), DVec3::splat(3.0), DVec3::splat(3.0), DVec3::ZERO];
-        let out = object_factor(&old, (&t_sum, &r_sum), &[true, true, false, true], &[0, 0, 1, 0], 2);
+        let mut out = old.clone();
+        object_factor(&old, (&t_sum, &r_sum), &[true, true, false, true], &[0, 0, 1, 0], 2, &mut out);
         for (t, want) in [(0, 0.4), (1, 0.8), (2, 0.5), (3, 0.6)] {
             assert!((out[t].x - want).abs() < 1e-6, "triangle {t}: {out:?}");
         }
         // A factor that would pass 1 is clamped there; a channel with no render keeps its value.
         let r_none = vec![DVec3::new(1.0, 1.0, 0.0), DVec3::new(1.0, 1.0, 0.0), DVec3::ZERO, DVec3::ZERO];
-        let out = object_factor(&old, (&t_sum, &r_none), &[true, true, false, true], &[0, 0, 1, 0], 2);
+        let mut out = old.clone();
+        object_factor(&old, (&t_sum, &r_none), &[true, true, false, true], &[0, 0, 1, 0], 2, &mut out);
         assert_eq!(out[1], Vec3::new(1.0, 1.0, 0.4));
     }
 

@@ -81,6 +81,8 @@ impl From<&TriangleConfig> for TriangleSettings {
             fit_steps: c.fit_steps,
             spp: c.spp,
             pixels_per_triangle: c.pixels_per_triangle,
+            paths_per_triangle: c.paths_per_triangle,
+            paths_per_object: c.paths_per_object,
             adam_iterations: c.adam_iterations,
             adam_lr: c.adam_lr,
             smoothness: c.smoothness,
