@@ -36,13 +36,18 @@ pub fn render_blocks(
     progress: &dyn crate::Progress,
     phase: &str,
 ) -> Result<(Vec<Vec3>, TraceStats), BlockError> {
-    render_blocks_each(renderer, cameras, pixels, &vec![spp; pixels.len()], seed, key, progress, phase)
+    progress.phase(phase, pixels.len().div_ceil(RENDER_BLOCK) as u64, 0);
+    let mut values = Vec::with_capacity(pixels.len());
+    let mut work = TraceStats::default();
+    let at = Blocks { renderer, cameras, seed, key, progress };
+    at.render(pixels, spp, RENDER_BLOCK, &mut 0, &mut values, &mut work)?;
+    Ok((values, work))
 }
 
 /// [`render_blocks`] with its own path count per pixel, `spp[i]` for `pixels[i]`: each pixel's value is the one a
 /// render of it alone at that count gives (its paths are keyed by the pixel and the path's index). The pixels
 /// of one count render together, in blocks of about `RENDER_BLOCK · max(spp)` paths, so that every block costs
-/// about the same and the phase's ETA holds.
+/// about the same and the phase's ETA holds; with one count for all, this is [`render_blocks`].
 #[allow(clippy::too_many_arguments)]
 pub fn render_blocks_each(
     renderer: &tracer::Renderer<'_>,
@@ -55,6 +60,10 @@ pub fn render_blocks_each(
     phase: &str,
 ) -> Result<(Vec<Vec3>, TraceStats), BlockError> {
     debug_assert_eq!(pixels.len(), spp.len());
+    let first = spp.first().copied().unwrap_or(1);
+    if spp.iter().all(|&n| n == first) {
+        return render_blocks(renderer, cameras, pixels, first, seed, key, progress, phase);
+    }
     let most = spp.iter().copied().max().unwrap_or(1).max(1);
     // The pixels of each path count, in their order, the largest count first.
     let mut by_count: std::collections::BTreeMap<std::cmp::Reverse<u32>, Vec<usize>> = Default::default();
@@ -67,20 +76,49 @@ pub fn render_blocks_each(
     let mut values = vec![Vec3::ZERO; pixels.len()];
     let mut work = TraceStats::default();
     let mut done = 0;
-    for (n, at) in &by_count {
-        for block in at.chunks(block_of(n.0)) {
-            check_stop(progress)?;
-            let these: Vec<PixelRef> = block.iter().map(|&i| pixels[i]).collect();
-            let (v, stats) = renderer.render_pixels(cameras, &these, n.0, seed, key)?;
-            for (&i, v) in block.iter().zip(v) {
-                values[i] = v;
-            }
-            work.add(&stats);
-            done += 1;
-            progress.set_position(done);
+    let at = Blocks { renderer, cameras, seed, key, progress };
+    for (n, indices) in &by_count {
+        let these: Vec<PixelRef> = indices.iter().map(|&i| pixels[i]).collect();
+        let mut got = Vec::with_capacity(these.len());
+        at.render(&these, n.0, block_of(n.0), &mut done, &mut got, &mut work)?;
+        for (&i, v) in indices.iter().zip(got) {
+            values[i] = v;
         }
     }
     Ok((values, work))
+}
+
+/// What every block of a render shares.
+struct Blocks<'a, 'r> {
+    renderer: &'a tracer::Renderer<'r>,
+    cameras: &'a [Camera],
+    seed: u64,
+    key: u64,
+    progress: &'a dyn crate::Progress,
+}
+
+impl Blocks<'_, '_> {
+    /// `pixels` at `spp` paths each, in blocks of `block` pixels, their values appended to `values`; the
+    /// phase's position counts on from `done`, one step per block, and a stop is checked before every block.
+    fn render(
+        &self,
+        pixels: &[PixelRef],
+        spp: u32,
+        block: usize,
+        done: &mut u64,
+        values: &mut Vec<Vec3>,
+        work: &mut TraceStats,
+    ) -> Result<(), BlockError> {
+        for chunk in pixels.chunks(block) {
+            check_stop(self.progress)?;
+            let (v, stats) = self.renderer.render_pixels(self.cameras, chunk, spp, self.seed, self.key)?;
+            values.extend(v);
+            work.add(&stats);
+            *done += 1;
+            self.progress.set_position(*done);
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -579,18 +579,18 @@ pub(crate) fn ratio_steps(
     }
     let used = |s: &TriSample| s.interior || interior[s.tri as usize] < MIN_INTERIOR;
     let pix: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
-    let budget = PathBudget { spp: cfg.spp, per_triangle: cfg.paths_per_triangle, per_object: cfg.paths_per_object };
-    let spp = paths_per_pixel(samples, &state.face_object, state.emission.len(), &budget);
     let mut loss = Vec::new();
     let mut residual = vec![Vec3::ZERO; samples.len()];
     let mut work = tracer::TraceStats::default();
-    // Per object and channel: the fraction of the ratio step taken, and the object's mean change last step.
     let objects = state.emission.len();
+    let budget = PathBudget { spp: cfg.spp, per_triangle: cfg.paths_per_triangle, per_object: cfg.paths_per_object };
+    let spp = paths_per_pixel(samples, &state.face_object, objects, &budget);
+    // Per object and channel: the fraction of the ratio step taken, and the object's mean change last step.
     let mut relax = vec![DVec3::ONE; objects];
     let mut last_step = vec![DVec3::ZERO; objects];
     // The per-triangle buffers of every step, allocated once: the lobe family look takes a dozen steps per
-    // object on a few hundred pixels, and fresh buffers of a house's 521 362 triangles each step made the
-    // kernel's page faults and zeroing about a third of its time (docs/optim/design-measurements.md, "Paths per
+    // object on a few hundred pixels, and fresh buffers of a house's 521 362 triangles each step made page
+    // faults, zeroing and copies about 40 % of its time (docs/optim/design-measurements.md, "Paths per
     // triangle in the ratio steps"). A step changes only the base colours: emission and horizon stay.
     let mut params = state.params();
     let mut t_sum = vec![DVec3::ZERO; n];
