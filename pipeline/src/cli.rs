@@ -67,8 +67,8 @@ pub struct RenderArgs {
     /// Materials in the ipt-materials/1 schema (default: RUN_DIR/materials.json).
     #[arg(long)]
     pub materials: Option<PathBuf>,
-    /// Largest number of scattering events of a path.
-    #[arg(long, default_value_t = 8)]
+    /// Largest number of scattering events of a path (the config's default `tracer.max_depth`).
+    #[arg(long, default_value_t = workflow::config::DEFAULT_MAX_DEPTH)]
     pub max_depth: u32,
     /// Image width for every camera (default: the size of the listed colour image, when it exists).
     #[arg(long, requires = "height")]

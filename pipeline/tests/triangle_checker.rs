@@ -11,7 +11,7 @@
 //! `target/triangle_checker/` for tests/validation/test_triangle_export.py.
 
 mod common;
-use common::{copy_dir, pipeline};
+use common::{copy_dir, pipeline, write_fixture_config};
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
@@ -34,22 +34,12 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     let desc = lab::synth::load_desc(&workspace().join("data-fixtures/scenes/checker.toml")).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("run.toml");
-    // The fit traces paths as deep as the renderer that made the photos did (the scene's `max_depth` and
-    // `rr_depth`, as the in-memory fits of the other fixtures do), so that what is measured is the texture's
-    // recovery. At the default depth of 8 against photos of depth 6 the fit's extra bounces put the light
-    // about 2 % high and the albedos as much low: over seeds 0–5 the floor's PSNR was 39.0–45.0 dB (40.00 at
-    // seed 0 with Embree's AVX-512 kernels, 40.01 with its AVX2 ones), at the photos' depth 41.6–53.3 dB over
-    // seeds 0–11 (docs/optim/design-measurements.md, "The checker fit at the photos' path depth").
-    std::fs::write(
-        &cfg,
-        format!(
-            "[scan]\npath = {:?}\n[output]\npath = \"out\"\n[tracer]\nmax_depth = {}\nrr_depth = {}\n",
-            scan.to_str().unwrap(),
-            desc.max_depth,
-            desc.rr_depth
-        ),
-    )
-    .unwrap();
+    // The fit traces paths as deep as the renderer that made the photos did, so that what is measured is the
+    // texture's recovery. At depth 8 against photos of depth 6 the fit's extra bounces put the light about 2 %
+    // high and the albedos as much low: over seeds 0–5 the floor's PSNR was 39.0–45.0 dB (40.00 at seed 0 with
+    // Embree's AVX-512 kernels, 40.01 with its AVX2 ones), at the photos' depth 41.6–53.3 dB over seeds 0–11
+    // (docs/optim/design-measurements.md, "The checker fit at the photos' path depth").
+    write_fixture_config(&cfg, &scan, &desc);
     let cfg = cfg.to_str().unwrap();
     let started = std::time::Instant::now();
     let (code, err) = pipeline(&["run", cfg]);

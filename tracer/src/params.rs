@@ -185,6 +185,9 @@ pub struct TracerSettings {
     pub emission_profile: EmissionProfile,
 }
 
+/// Depth 8 (that of the default scene's photos, data-fixtures/scenes/demo.toml) with roulette from 3, for the
+/// library's own callers and tests. The pipeline's config default is deeper (`tracer.max_depth`,
+/// configs/README.md).
 impl Default for TracerSettings {
     fn default() -> Self {
         TracerSettings { max_depth: 8, rr_depth: 3, emission_profile: EmissionProfile::Uniform }

@@ -262,8 +262,17 @@ pub fn profile_name(p: EmissionProfile) -> &'static str {
     }
 }
 
+/// Default `tracer.max_depth`: deep enough that no photo's light is cut short. Photos (and renderers such as
+/// Mitsuba at its default, or the reference scenes under `../shared/data` at 65) carry light of every path
+/// length; a fit whose paths stop earlier explains the missing light with brighter albedos and a dimmer light.
+/// In a white room whose photos carry 12 % of their light on paths of more than 8 bounces, a fit at depth 8
+/// ended at albedo L1 0.048 (albedos 5–7 % high, the light 8 % low), at 16 at 0.0066, at 32 at 0.0039 and at
+/// 64 at 0.0058, for 13 % more time than at 8; Russian roulette ends paths long before the cap, so 32 and 64
+/// cost the same (docs/optim/design-measurements.md, "Path depth against photos of unbounded depth").
+pub const DEFAULT_MAX_DEPTH: u32 = 64;
+
 fn default_max_depth() -> u32 {
-    8
+    DEFAULT_MAX_DEPTH
 }
 
 fn default_rr_depth() -> u32 {
@@ -559,7 +568,10 @@ mod tests {
         assert_eq!(c.scan.format, ScanFormat::Auto);
         assert_eq!(c.output.path, PathBuf::from("run"));
         assert_eq!(c.images, ImagesConfig::default());
-        assert_eq!(c.tracer.settings(), tracer::TracerSettings::default());
+        assert_eq!(
+            c.tracer.settings(),
+            tracer::TracerSettings { max_depth: DEFAULT_MAX_DEPTH, ..tracer::TracerSettings::default() }
+        );
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! Quality presets: the top-level config key `quality = "preview" | "balanced" | "final"` stands for a set of
-//! `[object]`, `[tracer]` and `[images]` values, chosen from the measured speed/accuracy front of
-//! `lab bench tradeoff` (docs/tradeoff/). A preset only fills keys the user did not write: any key
-//! given in the file or by `--set` wins over the preset's value.
+//! `[object]` and `[images]` values, chosen from the measured speed/accuracy front of `lab bench tradeoff`
+//! (docs/tradeoff/). A preset only fills keys the user did not write: any key given in the file or by `--set`
+//! wins over the preset's value. No preset sets the path depth: a fit whose paths stop before the photos' light
+//! does is biased whatever its budgets, so every preset keeps `tracer.max_depth` at its default
+//! ([`crate::config::DEFAULT_MAX_DEPTH`]).
 //!
 //! The preset is applied to the TOML table before it is deserialised ([`apply`], called by
 //! [`crate::config::parse`]), so the resolved plan — and every stage manifest — holds the effective values.
@@ -65,7 +67,6 @@ impl Quality {
                 ("object.refine_steps", Int(4)),
                 ("object.holdout_spp", Int(64)),
                 ("object.try_specular", Bool(false)),
-                ("tracer.max_depth", Int(8)),
                 ("images.downscale", Int(2)),
             ],
             // Sweep point `corner:mid` (measured: configs/README.md, presets).
@@ -77,7 +78,6 @@ impl Quality {
                 ("object.refine_steps", Int(8)),
                 ("object.holdout_spp", Int(256)),
                 ("object.try_specular", Bool(true)),
-                ("tracer.max_depth", Int(8)),
                 ("images.downscale", Int(1)),
             ],
             // Sweep point `default`: the fit's defaults, written out (measured: configs/README.md, presets).
@@ -89,7 +89,6 @@ impl Quality {
                 ("object.refine_steps", Int(8)),
                 ("object.holdout_spp", Int(128)),
                 ("object.try_specular", Bool(true)),
-                ("tracer.max_depth", Int(8)),
                 ("images.downscale", Int(1)),
             ],
         }

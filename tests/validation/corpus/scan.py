@@ -176,7 +176,11 @@ def build(
     width: int = 160,
     height: int = 128,
     spp: int = 64,
-    max_depth: int = 8,
+    # Photos carry light of every path length, and so do the reference scenes (Bitterli's at 65, Mitsuba's
+    # `path` at its default): a scan rendered at 8 bounces held back up to 12 % of a white room's light, which
+    # a fit at the pipeline's default depth then reads as darker albedos (docs/optim/design-measurements.md,
+    # "Path depth against photos of unbounded depth"). Mitsuba's roulette makes 64 cost what 8 did (+2 %).
+    max_depth: int = 64,
     positions: int = 3,
     novel_positions: int = 2,
     novel_spp: int | None = None,
