@@ -11,7 +11,7 @@
 //! `target/triangle_checker/` for tests/validation/test_triangle_export.py.
 
 mod common;
-use common::{copy_dir, pipeline, write_fixture_config};
+use common::{copy_dir, pipeline};
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
@@ -39,7 +39,7 @@ fn checker_floor_is_recovered_per_triangle_and_walls_stay_whole() {
     // high and the albedos as much low: over seeds 0–5 the floor's PSNR was 39.0–45.0 dB (40.00 at seed 0 with
     // Embree's AVX-512 kernels, 40.01 with its AVX2 ones), at the photos' depth 41.6–53.3 dB over seeds 0–11
     // (docs/optim/design-measurements.md, "The checker fit at the photos' path depth").
-    write_fixture_config(&cfg, &scan, &desc);
+    std::fs::write(&cfg, lab::synth::run_config(&scan, &desc)).unwrap();
     let cfg = cfg.to_str().unwrap();
     let started = std::time::Instant::now();
     let (code, err) = pipeline(&["run", cfg]);

@@ -296,14 +296,8 @@ fn measure(p: Point, opts: &ScaleOptions, work: &Path) -> Result<Measured, Bench
     let built = synth::build(p.desc.clone(), &desc_path)?;
     synth::write_scan(&built, &scan)?;
     let config = dir.join("run.toml");
-    // The fit traces paths as deep as the photos' renderer (the scene's depth), so that the sweep measures the
-    // cost of scale, not of a depth mismatch.
-    let text = format!(
-        "[scan]\npath = {:?}\n[output]\npath = \"out\"\n[tracer]\nmax_depth = {}\nrr_depth = {}\n",
-        scan.to_string_lossy(),
-        built.desc.max_depth,
-        built.desc.rr_depth
-    );
+    // At the scene's own path depth, so that the sweep measures the cost of scale, not of a depth mismatch.
+    let text = synth::run_config(&scan, &built.desc);
     super::write_file(&config, text.as_bytes())?;
     let ProcessRun { costs, wall_s, time_v_peak_rss_mb, load_avg_1m } =
         run_in_process(&config, &dir.join("stats.json"), &opts.set)?;

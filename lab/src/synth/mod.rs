@@ -289,6 +289,20 @@ pub fn generate(desc_path: &Path, out_dir: &Path) -> Result<(), SynthError> {
     write_scan(&built, out_dir)
 }
 
+/// The text of a `pipeline run` config for the scan of `desc` at `scan`, output `out` beside the config: the fit
+/// traces paths as deep as the renderer that made the photos (`desc.max_depth`, `desc.rr_depth`), as the
+/// in-memory fits of the scenes do, since a fit deeper or shallower than its photos is biased
+/// (docs/optim/design-measurements.md, "Path depth against photos of unbounded depth").
+#[must_use]
+pub fn run_config(scan: &Path, desc: &SceneDesc) -> String {
+    format!(
+        "[scan]\npath = {:?}\n[output]\npath = \"out\"\n[tracer]\nmax_depth = {}\nrr_depth = {}\n",
+        scan.to_string_lossy(),
+        desc.max_depth,
+        desc.rr_depth
+    )
+}
+
 /// Writes the Matterport layout of a built scene (mesh, cameras, rendered photos, ground truth) into
 /// `out_dir`.
 pub fn write_scan(built: &BuiltScene, out_dir: &Path) -> Result<(), SynthError> {

@@ -497,11 +497,16 @@ fn object_factor(
     }
     for t in (0..old.len()).filter(|&t| free[t]) {
         let (ts, rs) = sums[face_object[t] as usize];
-        // A channel the renders put at 0 (no pixel, or no light of that colour on the object; a black base
-        // colour is not one, being rendered at MIN_STEP_BASE) has no ratio: its value stays.
-        let q = |c: usize| if rs[c] > 0.0 { ts[c] / rs[c] } else { 1.0 };
-        out[t] = (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE);
+        out[t] = ratio_step(old[t], ts, rs);
     }
+}
+
+/// The ratio step of one value: `old` times photo sum `t` over render sum `r`, per channel, within [0, 1]. A
+/// channel the renders put at 0 (no pixel, or no light of that colour there; a black base colour is not one,
+/// being rendered at MIN_STEP_BASE) has no ratio: its value stays.
+fn ratio_step(old: Vec3, t: DVec3, r: DVec3) -> Vec3 {
+    let q = |c: usize| if r[c] > 0.0 { t[c] / r[c] } else { 1.0 };
+    (old.as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
 }
 
 /// What a run of ratio steps leaves: the loss before each update, the residuals against the render predicted
@@ -647,13 +652,7 @@ pub(crate) fn ratio_steps(
                 object_factor(&old, (&t_sum, &r_sum), free, &state.face_object, objects, &mut rho);
             }
             Update::PerTriangle { nbrs } => {
-                let ratio: Vec<Vec3> = (0..n)
-                    .map(|t| {
-                        let r = r_sum[t];
-                        let q = |c: usize| if r[c] > 0.0 { t_sum[t][c] / r[c] } else { 1.0 };
-                        (old[t].as_dvec3() * DVec3::new(q(0), q(1), q(2))).as_vec3().clamp(Vec3::ZERO, Vec3::ONE)
-                    })
-                    .collect();
+                let ratio: Vec<Vec3> = (0..n).map(|t| ratio_step(old[t], t_sum[t], r_sum[t])).collect();
                 let evidence = Evidence {
                     old: &old,
                     t_sum: &t_sum,

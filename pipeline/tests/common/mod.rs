@@ -55,20 +55,6 @@ pub fn copy_dir(from: &Path, to: &Path) {
     }
 }
 
-/// Writes a `pipeline run` config to `path` for the scan at `scan`, output `out`, whose photos `desc` rendered:
-/// the fit traces paths as deep as that renderer did (its `max_depth` and `rr_depth`), as the in-memory fits
-/// of the fixtures do, since a fit deeper or shallower than its photos is biased (docs/optim/
-/// design-measurements.md, "Path depth against photos of unbounded depth").
-pub fn write_fixture_config(path: &Path, scan: &Path, desc: &lab::synth::desc::SceneDesc) {
-    let text = format!(
-        "[scan]\npath = {:?}\n[output]\npath = \"out\"\n[tracer]\nmax_depth = {}\nrr_depth = {}\n",
-        scan.to_str().unwrap(),
-        desc.max_depth,
-        desc.rr_depth
-    );
-    std::fs::write(path, text).unwrap();
-}
-
 /// The bundled scene `data-fixtures/scenes/<name>.toml` with its photos rendered in memory at `spp` paths per
 /// pixel (instead of the description's own count).
 pub fn synth_scene(name: &str, spp: u32) -> (lab::synth::BuiltScene, Vec<ingest::photo::LinearImage>) {
