@@ -44,8 +44,8 @@ pub struct ObjectFitSettings {
     /// Emission L1 weight, relative: an object's emission e_k costs `emission_l1 · s_k · e_k`, with s_k the
     /// mean |∂I/∂e_k| over the solve pixels — i.e. how strongly that emission moves the loss (a hidden light's s_k
     /// is ~1e-4 of a visible wall's), so one weight treats a visible wall and a hidden light alike. It applies in
-    /// the emission-only solves, which choose the emitters; the joint Gauss–Newton steps keep the emitters they
-    /// start from, unpenalised.
+    /// the Adam phase's emission-only solves, which choose the emitters; the re-fit with the lobes and the joint
+    /// Gauss–Newton steps keep the emitters they start from, unpenalised.
     pub emission_l1: f64,
     pub seed: u64,
     /// A checkpoint is handed out every this many iterations (Adam iterations and refinement steps).
