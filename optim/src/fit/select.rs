@@ -582,6 +582,8 @@ pub fn choose_models(
 
     // Specular lobe trial.
     let mut glossy = vec![false; k_count];
+    // The emitters that the re-fit with the lobes took to 0 in every channel (for their `why`).
+    let mut refit_zeroed = vec![false; k_count];
     let try_lobes = s.try_specular && free.iter().any(|&f| f);
     // The pixels of the lobe tests, for the first look below and the second look at the end.
     let lobe_test = if try_lobes { lobe_test_samples(ctx, sets, test, budget) } else { Vec::new() };
@@ -685,6 +687,10 @@ pub fn choose_models(
             };
             progress.phase("model selection: re-fit with the lobes, step", u64::from(run.steps), 0);
             run.apply(ctx, &unpenalised, sets, &mut x, free, &dark, progress)?;
+            for k in (0..k_count).filter(|&k| !dark[k]) {
+                refit_zeroed[k] =
+                    (0..3).all(|c| x[idx(k, EMISSION + c)] == 0.0 && x[idx(k, EMISSION_GROUND + c)] == 0.0);
+            }
         }
     }
 
@@ -738,7 +744,13 @@ pub fn choose_models(
     for k in 0..k_count {
         let e = [x[idx(k, EMISSION)], x[idx(k, EMISSION + 1)], x[idx(k, EMISSION + 2)]];
         if e.iter().all(|&v| v == 0.0) {
-            why[k].push("no emission: the L1-penalised emission solve set it to 0".into());
+            why[k].push(if refit_zeroed[k] {
+                "no emission: the re-fit of the emission with the lobes in place (materials fixed, unpenalised) \
+                 took it to 0"
+                    .into()
+            } else {
+                "no emission: the L1-penalised emission solve set it to 0".into()
+            });
             continue;
         }
         progress.set_position(tested);
