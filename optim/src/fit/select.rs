@@ -675,9 +675,10 @@ pub fn choose_models(
             // solve dropped a 19.5 m² lamp that no photo sees, which the refinement had within 12 % of its truth, and
             // made 54 new emitters of a house's walls and boxes for the emission test to reject
             // (docs/optim/design-measurements.md, "The re-fit with the lobes chooses no emitters").
-            let dark: Vec<bool> = (0..k_count)
-                .map(|k| (0..3).all(|c| x[idx(k, EMISSION + c)] == 0.0 && x[idx(k, EMISSION_GROUND + c)] == 0.0))
-                .collect();
+            let emits_nothing = |x: &[f64], k: usize| {
+                (0..3).all(|c| x[idx(k, EMISSION + c)] == 0.0 && x[idx(k, EMISSION_GROUND + c)] == 0.0)
+            };
+            let dark: Vec<bool> = (0..k_count).map(|k| emits_nothing(&x, k)).collect();
             let unpenalised = ObjectFitSettings { emission_l1: 0.0, ..s.clone() };
             let run = AveragedSteps {
                 unknowns,
@@ -688,8 +689,7 @@ pub fn choose_models(
             progress.phase("model selection: re-fit with the lobes, step", u64::from(run.steps), 0);
             run.apply(ctx, &unpenalised, sets, &mut x, free, &dark, progress)?;
             for k in (0..k_count).filter(|&k| !dark[k]) {
-                refit_zeroed[k] =
-                    (0..3).all(|c| x[idx(k, EMISSION + c)] == 0.0 && x[idx(k, EMISSION_GROUND + c)] == 0.0);
+                refit_zeroed[k] = emits_nothing(&x, k);
             }
         }
     }
