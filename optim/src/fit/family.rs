@@ -45,6 +45,17 @@ const METAL_STATISTIC: Statistic = Statistic::L1OrSquaredError;
 /// two probes.
 const METAL_START_ROUGHNESS: f64 = roughness::GRID[3];
 
+/// Where a metal lobe's profile solves start for object k of `x` (whose metallic is 1): the base colour whose
+/// render at [`METAL_START_ROUGHNESS`] matches the pixels' summed radiance ([`roughness::ratio_start`]).
+pub(super) fn metal_start(
+    ctx: &Ctx<'_>,
+    x: &[f64],
+    k: usize,
+    at: (&[Sample], u32, u64),
+) -> Result<[f64; 3], tracer::TracerError> {
+    roughness::ratio_start(ctx, x, k, METAL_START_ROUGHNESS, at)
+}
+
 /// The second look for every free object without emission whose metallic is below one half (`x`, `free`, `emits` as
 /// model selection ends with them). The metal family is probed at [`METAL_PROBES`], its profile solves started at the
 /// base colour whose render matches the pixels' summed radiance ([`roughness::ratio_start`] at
@@ -94,7 +105,7 @@ pub(super) fn second_look(
         let current = unbiased(x, x[idx(k, ROUGHNESS)])?;
         let mut at_metal = x.to_vec();
         at_metal[idx(k, METALLIC)] = 1.0;
-        let start = roughness::ratio_start(ctx, &at_metal, k, METAL_START_ROUGHNESS, (&samples, spp, key))?;
+        let start = metal_start(ctx, &at_metal, k, (&samples, spp, key))?;
         for c in 0..3 {
             at_metal[idx(k, BASE_COLOR + c)] = start[c];
         }

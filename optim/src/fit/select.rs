@@ -143,8 +143,14 @@ impl AveragedSteps {
 
 /// The best lobe of object k with its emission off, dielectric (metallic 0) or metal (metallic 1), each by
 /// [`roughness::search`] from a mid-range lobe: what an object that reflects a light looks like when it does
-/// not emit. Returns `x` with that lobe (the lower profile loss of the two) and no emission for k.
-fn best_lobe_without_emission(
+/// not emit. The metal's search starts at the base colour whose render matches the pixels' summed radiance
+/// ([`family::metal_start`]), as the second look's metal probes do: an object fitted with an emission has a
+/// dark base colour, and a metal's profile solves, one linearised step each, end where their start sends them
+/// (short of the truth on the corpus house's metals, past it on the metal-lamp fixture), so the emission was
+/// held to a metal of the wrong colour. On the house rendered at 128 paths per pixel a polished metal box
+/// kept an emission that way (docs/optim/design-measurements.md, "The emission's metal alternative starts
+/// bright"). Returns `x` with that lobe (the lower profile loss of the two) and no emission for k.
+pub fn best_lobe_without_emission(
     ctx: &Ctx<'_>,
     s: &ObjectFitSettings,
     samples: &[Sample],
@@ -161,7 +167,14 @@ fn best_lobe_without_emission(
         base[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
         base[idx(k, METALLIC)] = metallic;
         let search_key = key::SELECT_EMISSION_LOBE + 2 * k as u64 + metallic as u64;
-        let (p, _) = roughness::search(ctx, &base, k, samples, roughness::profile_spp(s.solve_spp), search_key)?;
+        let spp = roughness::profile_spp(s.solve_spp);
+        if metallic == 1.0 {
+            let start = family::metal_start(ctx, &base, k, (samples, spp, search_key))?;
+            for c in 0..3 {
+                base[idx(k, BASE_COLOR + c)] = start[c];
+            }
+        }
+        let (p, _) = roughness::search(ctx, &base, k, samples, spp, search_key)?;
         for c in 0..3 {
             base[idx(k, BASE_COLOR + c)] = p.base_color[c];
         }
