@@ -13,26 +13,32 @@
 //! and on the corpus house's polished boxes, where the solve falls short instead of overshooting, the emission
 //! beat that metal (docs/optim/design-measurements.md, "The emission's metal alternative starts bright").
 
-use optim::fit::layout::{self, BASE_COLOR, ROUGHNESS, idx};
-use optim::fit::layout::{EMISSION, METALLIC};
+use optim::fit::layout::{self, BASE_COLOR, EMISSION, METALLIC, ROUGHNESS, idx};
 use optim::fit::pixels::{self, Sample};
 use optim::fit::roughness::{self, ratio_start};
 use optim::fit::samples::SampleCounter;
 use optim::fit::{ObjectFitSettings, select};
 use std::path::Path;
 
-#[test]
-fn the_ratio_start_finds_a_metal_base_colour_from_a_dark_one() {
+/// The metal-lamp fixture built and photographed: the scene, its metal box's index, the true parameters and the
+/// box's training pixels (all of them: no held-out share).
+fn metal_box() -> (lab::synth::BuiltScene, usize, Vec<f64>, Vec<Sample>) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/metal-lamp.toml");
     let built = lab::synth::build(lab::synth::load_desc(&path).unwrap(), &path).unwrap();
     let images = lab::synth::photos(&built).unwrap();
     let k_count = built.desc.objects.len();
     let metal = built.desc.objects.iter().position(|o| o.label == "metal box").expect("the fixture's metal box");
     let x = layout::from_params(&built.params);
-    let truth = layout::base_color(&x, metal);
-    let r_true = x[idx(metal, ROUGHNESS)];
     let sets = pixels::collect(&built.scene, &built.cameras, &images, k_count, 0.0, usize::MAX, usize::MAX, 0);
     let samples: Vec<Sample> = sets.train.iter().filter(|t| t.object == Some(metal as u32)).copied().collect();
+    (built, metal, x, samples)
+}
+
+#[test]
+fn the_ratio_start_finds_a_metal_base_colour_from_a_dark_one() {
+    let (built, metal, x, samples) = metal_box();
+    let truth = layout::base_color(&x, metal);
+    let r_true = x[idx(metal, ROUGHNESS)];
     assert!(samples.len() > 1000, "the metal box has {} pixels", samples.len());
     let counter = SampleCounter::default();
     let ctx = built.fit_context(5, &counter);
@@ -63,16 +69,9 @@ fn the_ratio_start_finds_a_metal_base_colour_from_a_dark_one() {
 
 #[test]
 fn the_emission_tests_metal_alternative_starts_where_its_render_matches_the_photos() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-fixtures/scenes/metal-lamp.toml");
-    let built = lab::synth::build(lab::synth::load_desc(&path).unwrap(), &path).unwrap();
-    let images = lab::synth::photos(&built).unwrap();
-    let k_count = built.desc.objects.len();
-    let metal = built.desc.objects.iter().position(|o| o.label == "metal box").expect("the fixture's metal box");
-    let truth_x = layout::from_params(&built.params);
+    let (built, metal, truth_x, own) = metal_box();
     let truth = layout::base_color(&truth_x, metal);
-    let sets = pixels::collect(&built.scene, &built.cameras, &images, k_count, 0.0, usize::MAX, usize::MAX, 0);
     // The alternative searches on at most 256 of the object's pixels (`roughness::PROFILE_PIXELS`).
-    let own: Vec<Sample> = sets.train.iter().filter(|t| t.object == Some(metal as u32)).copied().collect();
     let samples: Vec<Sample> = own.iter().step_by(own.len().div_ceil(256)).copied().collect();
     let counter = SampleCounter::default();
     let ctx = built.fit_context(5, &counter);

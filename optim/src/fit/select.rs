@@ -158,6 +158,7 @@ pub fn best_lobe_without_emission(
     k: usize,
 ) -> Result<Vec<f64>, FitError> {
     let mut best: Option<(Vec<f64>, f64)> = None;
+    let spp = roughness::profile_spp(s.solve_spp);
     for metallic in [0.0, 1.0] {
         let mut base = x.to_vec();
         for c in 0..3 {
@@ -167,7 +168,6 @@ pub fn best_lobe_without_emission(
         base[idx(k, ROUGHNESS)] = TRIAL_ROUGHNESS;
         base[idx(k, METALLIC)] = metallic;
         let search_key = key::SELECT_EMISSION_LOBE + 2 * k as u64 + metallic as u64;
-        let spp = roughness::profile_spp(s.solve_spp);
         if metallic == 1.0 {
             let start = family::metal_start(ctx, &base, k, (samples, spp, search_key))?;
             for c in 0..3 {
