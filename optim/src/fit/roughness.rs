@@ -346,13 +346,47 @@ pub fn search_up_to(
     key: u64,
     top: f64,
 ) -> Result<(ProfilePoint, Vec<ProfilePoint>), TracerError> {
-    search_profile(top, mean_target(samples), |r| profile(ctx, x, k, r, samples, spp, key))
+    search_profile(top, mean_target(samples), Rank::L1, |r| profile(ctx, x, k, r, samples, spp, key))
 }
 
-/// The search of [`search_up_to`] over the profile `profile_at(r)`, whose losses are relative to `mean_target`.
+/// What a roughness search minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Rank {
+    /// The profile's L1 ([`ProfilePoint::loss`]), from one render.
+    L1,
+    /// The profile's unbiased RMS error ([`ProfilePoint::rms`]), from two renders at half the paths each.
+    Rms,
+}
+
+impl Rank {
+    fn of(self, p: &ProfilePoint) -> f64 {
+        match self {
+            Rank::L1 => p.loss,
+            Rank::Rms => p.rms.unwrap_or(p.loss),
+        }
+    }
+}
+
+/// [`search`] with every point evaluated by [`profile_unbiased`] and ranked by its unbiased RMS error
+/// ([`ProfilePoint::rms`]) instead of the L1 of one render. The L1 is inflated by the render's Monte Carlo
+/// noise, the more so the sharper and brighter the lobe, so where the pixels' noise hides the lobe's shape it
+/// leans to the roughest one (docs/optim/design-measurements.md, "An emission's lobe alternative searched by
+/// its unbiased error"). The same paths as [`search`].
+pub fn search_unbiased(
+    ctx: &Ctx<'_>,
+    x: &[f64],
+    k: usize,
+    (samples, spp, key): (&[Sample], u32, u64),
+) -> Result<(ProfilePoint, Vec<ProfilePoint>), TracerError> {
+    search_profile(1.0, mean_target(samples), Rank::Rms, |r| profile_unbiased(ctx, x, k, r, (samples, spp, key)))
+}
+
+/// The search of [`search_up_to`] over the profile `profile_at(r)`, ranked by `rank`, whose values are relative
+/// to `mean_target`.
 fn search_profile(
     top: f64,
     mean_target: f64,
+    rank: Rank,
     mut profile_at: impl FnMut(f64) -> Result<ProfilePoint, TracerError>,
 ) -> Result<(ProfilePoint, Vec<ProfilePoint>), TracerError> {
     let n_grid = GRID.iter().take_while(|&&r| r <= top).count().max(1);
@@ -367,7 +401,7 @@ fn search_profile(
     for &i in COARSE.iter().filter(|&&i| i < n_grid) {
         grid[i] = Some(eval(GRID[i], &mut evals)?);
     }
-    let flat = flat(&grid, mean_target);
+    let flat = flat(&grid, mean_target, rank);
     if !flat {
         for i in 0..n_grid {
             if grid[i].is_none() {
@@ -376,8 +410,11 @@ fn search_profile(
         }
     }
     let done: Vec<(usize, ProfilePoint)> = grid.iter().enumerate().filter_map(|(i, p)| p.map(|p| (i, p))).collect();
-    let (best, best_point) =
-        done.iter().copied().min_by(|a, b| a.1.loss.total_cmp(&b.1.loss)).expect("the coarse grid is not empty");
+    let (best, best_point) = done
+        .iter()
+        .copied()
+        .min_by(|a, b| rank.of(&a.1).total_cmp(&rank.of(&b.1)))
+        .expect("the coarse grid is not empty");
     // More points only widen the profile's spread: a profile not flat over the coarse points is not flat over all.
     if flat {
         return Ok((best_point, evals));
@@ -387,7 +424,7 @@ fn search_profile(
     // Brent's first parabola goes through the best grid point and its neighbours in the bracket. At an end of
     // the grid the bracket's other end is the domain's, not evaluated, and the first step is a golden section
     // (a parabola through the next grid points, all on one side of the minimum, lands far from it).
-    let at = |p: &ProfilePoint| (p.roughness, p.loss);
+    let at = |p: &ProfilePoint| (p.roughness, rank.of(p));
     let mut near: Vec<(f64, f64)> =
         done.iter().filter(|(i, p)| *i != best && (lo..=hi).contains(&p.roughness)).map(|(_, p)| at(p)).collect();
     near.sort_by(|a, b| (a.0 - best_point.roughness).abs().total_cmp(&(b.0 - best_point.roughness).abs()));
@@ -395,8 +432,9 @@ fn search_profile(
     let w = near.first().copied().unwrap_or(x);
     let v = near.get(1).copied().unwrap_or(w);
     let open = (best == 0, best + 1 == n_grid);
-    brent((lo, hi), open, (x, w, v), |r| eval(r, &mut evals).map(|p| p.loss))?;
-    Ok((lowest(&evals).unwrap_or(best_point), evals))
+    brent((lo, hi), open, (x, w, v), |r| eval(r, &mut evals).map(|p| rank.of(&p)))?;
+    let best = evals.iter().copied().min_by(|p, q| rank.of(p).total_cmp(&rank.of(q)));
+    Ok((best.unwrap_or(best_point), evals))
 }
 
 /// Brent's minimisation of `eval` over the bracket `[a, b]` (the minimiser of Brent, *Algorithms for
@@ -488,9 +526,10 @@ pub fn mean_target(samples: &[Sample]) -> f64 {
     samples.iter().map(|t| f64::from(t.target.abs().element_sum()) / 3.0).sum::<f64>() / samples.len().max(1) as f64
 }
 
-/// Whether the profile varies over the evaluated grid points by less than [`FLAT_PROFILE`] of `mean_target`.
-fn flat(grid: &[Option<ProfilePoint>], mean_target: f64) -> bool {
-    let losses = || grid.iter().flatten().map(|p| p.loss);
+/// Whether the profile, ranked by `rank`, varies over the evaluated grid points by less than [`FLAT_PROFILE`]
+/// of `mean_target`.
+fn flat(grid: &[Option<ProfilePoint>], mean_target: f64, rank: Rank) -> bool {
+    let losses = || grid.iter().flatten().map(|p| rank.of(p));
     let best = losses().fold(f64::INFINITY, f64::min);
     let worst = losses().fold(0.0, f64::max);
     worst - best < FLAT_PROFILE * mean_target
@@ -640,8 +679,8 @@ mod tests {
                         continue;
                     }
                     // Losses of 0.1 and more over a mean target of 1: never flat.
-                    let (best, evals) =
-                        search_profile(top, 1.0, |r| Ok(point_at(r, 0.1 + shape(r, m)))).expect("no render fails");
+                    let (best, evals) = search_profile(top, 1.0, Rank::L1, |r| Ok(point_at(r, 0.1 + shape(r, m))))
+                        .expect("no render fails");
                     assert!(
                         (best.roughness - m).abs() <= 2.0 * REFINE_TOL,
                         "{name}, top {top}: {} for {m}",
@@ -657,8 +696,24 @@ mod tests {
         }
         let mean = refined as f64 / f64::from(searches);
         assert!(mean < 4.5, "{mean} refinement evaluations per search");
-        let (_, evals) = search_profile(1.0, 1.0, |r| Ok(point_at(r, 0.1 + 1e-4 * r))).expect("no render fails");
+        let (_, evals) =
+            search_profile(1.0, 1.0, Rank::L1, |r| Ok(point_at(r, 0.1 + 1e-4 * r))).expect("no render fails");
         assert_eq!(evals.len(), COARSE.len(), "a flat profile is evaluated at the coarse points only");
+    }
+
+    /// A profile whose L1 carries the render's noise, which grows as the lobe sharpens (here by 0.6 · (1 − r)
+    /// over a bowl at 0.2), while its unbiased RMS error is the bowl alone: ranked by the L1 the search ends
+    /// rough, ranked by the RMS error at the bowl's minimum.
+    #[test]
+    fn a_search_ranked_by_the_unbiased_error_does_not_lean_to_rough_lobes() {
+        let bowl = |r: f64| 0.1 + (r - 0.2).powi(2);
+        let noisy = |r: f64| ProfilePoint { roughness: r, rms: Some(bowl(r)), ..point(1.0, bowl(r) + 0.6 * (1.0 - r)) };
+        let (by_l1, _) = search_profile(1.0, 1.0, Rank::L1, |r| Ok(noisy(r))).expect("no render fails");
+        let (by_rms, _) = search_profile(1.0, 1.0, Rank::Rms, |r| Ok(noisy(r))).expect("no render fails");
+        assert!(by_l1.roughness > 0.4, "the L1 ends at {}", by_l1.roughness);
+        assert!((by_rms.roughness - 0.2).abs() <= 2.0 * REFINE_TOL, "the RMS error ends at {}", by_rms.roughness);
+        // The point keeps its L1 loss; only the ranking differs.
+        assert_eq!(by_rms.loss, bowl(by_rms.roughness) + 0.6 * (1.0 - by_rms.roughness));
     }
 
     #[test]
