@@ -46,6 +46,13 @@ pub(super) fn paired_renders(
     Ok((out_a, out_b))
 }
 
+/// The two renders that stand for one at `spp` paths and key `key` where a statistic needs two independent
+/// estimates: half the paths each (at least one), the second at `key` XOR [`streams::key::SECOND_ESTIMATE`].
+pub(super) fn half_paths(spp: u32, key: u64) -> [(u32, u64); 2] {
+    let half = (spp / 2).max(1);
+    [(half, key), (half, key ^ streams::key::SECOND_ESTIMATE)]
+}
+
 /// The L1 distance of two RGB values (summed over the channels).
 pub(super) fn l1(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|c| (a[c] - b[c]).abs()).sum()
@@ -313,11 +320,10 @@ pub(super) fn sequential_lobe_test(
     let (params_d, params_t) = (ctx.params(x), ctx.params(xt));
     let mut i_d = vec![[glam::Vec3::ZERO; 2]; lobe_test.len()];
     let mut i_t = vec![[glam::Vec3::ZERO; 2]; lobe_test.len()];
+    let two = half_paths(s.holdout_spp, key);
     let halves: &[(u32, u64)] = match statistic {
         Statistic::L1 => &[(s.holdout_spp, key)],
-        Statistic::L1OrSquaredError => {
-            &[((s.holdout_spp / 2).max(1), key), ((s.holdout_spp / 2).max(1), key ^ streams::key::SECOND_ESTIMATE)]
-        }
+        Statistic::L1OrSquaredError => &two,
     };
     let mut open: Vec<usize> = (0..k_count).filter(|&k| tested[k] && !rows_of[k].is_empty()).collect();
     let mut looked = vec![0usize; k_count];

@@ -21,6 +21,7 @@
 use super::jacobian::{self, Ctx};
 use super::layout::{BASE_COLOR, METALLIC, ROUGHNESS, SPECULAR, idx};
 use super::linear::{self, DataLoss, Problem};
+use super::paired::half_paths;
 use super::pixels::{PixelSets, Sample};
 use crate::streams::{self, draw, key};
 use tracer::{PixelRef, TracerError};
@@ -193,11 +194,8 @@ fn profile_at(
     let params = ctx.params(&xr);
     let pixels: Vec<PixelRef> = samples.iter().map(|s| s.pixel).collect();
     let second = if halves {
-        let half = (spp / 2).max(1);
-        Some((
-            ctx.render(&params, &pixels, half, key)?,
-            ctx.render(&params, &pixels, half, key ^ key::SECOND_ESTIMATE)?,
-        ))
+        let [(spp_a, key_a), (spp_b, key_b)] = half_paths(spp, key);
+        Some((ctx.render(&params, &pixels, spp_a, key_a)?, ctx.render(&params, &pixels, spp_b, key_b)?))
     } else {
         None
     };
@@ -433,8 +431,7 @@ fn search_profile(
     let v = near.get(1).copied().unwrap_or(w);
     let open = (best == 0, best + 1 == n_grid);
     brent((lo, hi), open, (x, w, v), |r| eval(r, &mut evals).map(|p| rank.of(&p)))?;
-    let best = evals.iter().copied().min_by(|p, q| rank.of(p).total_cmp(&rank.of(q)));
-    Ok((best.unwrap_or(best_point), evals))
+    Ok((lowest(&evals, rank).unwrap_or(best_point), evals))
 }
 
 /// Brent's minimisation of `eval` over the bracket `[a, b]` (the minimiser of Brent, *Algorithms for
@@ -535,9 +532,9 @@ fn flat(grid: &[Option<ProfilePoint>], mean_target: f64, rank: Rank) -> bool {
     worst - best < FLAT_PROFILE * mean_target
 }
 
-/// The evaluation with the lowest profile loss.
-fn lowest<'a>(evals: impl IntoIterator<Item = &'a ProfilePoint>) -> Option<ProfilePoint> {
-    evals.into_iter().copied().min_by(|p, q| p.loss.total_cmp(&q.loss))
+/// The evaluation that `rank` puts lowest.
+fn lowest<'a>(evals: impl IntoIterator<Item = &'a ProfilePoint>, rank: Rank) -> Option<ProfilePoint> {
+    evals.into_iter().copied().min_by(|p, q| rank.of(p).total_cmp(&rank.of(q)))
 }
 
 /// Golden-section minimisation of `eval` inside `[lo, hi]` for [`GOLDEN_STEPS`] steps; the caller keeps every
@@ -611,7 +608,7 @@ pub fn search_lobe(
         evals.push(p);
         Ok(p)
     })?;
-    let blend = lowest(&evals).unwrap_or(dielectric);
+    let blend = lowest(&evals, Rank::L1).unwrap_or(dielectric);
     if blend.metallic > 0.0 && blend.metallic < 1.0 {
         // A blend of the two families: its roughness searched again at its metallic (one round of coordinate
         // descent on the profile loss over (roughness, metallic)).
@@ -629,8 +626,8 @@ pub fn search_lobe(
 /// base colour comes out 1/m too bright (docs/optim/design-measurements.md, "Blends only where they pay").
 fn pure_unless_blend_pays(evals: &[ProfilePoint], mean_target: f64) -> Option<ProfilePoint> {
     let is_pure = |p: &&ProfilePoint| p.metallic == 0.0 || p.metallic == 1.0;
-    let pure = lowest(evals.iter().filter(is_pure));
-    let blend = lowest(evals.iter().filter(|p| !is_pure(p)));
+    let pure = lowest(evals.iter().filter(is_pure), Rank::L1);
+    let blend = lowest(evals.iter().filter(|p| !is_pure(p)), Rank::L1);
     match (pure, blend) {
         (Some(p), Some(b)) if b.loss <= p.loss - FLAT_PROFILE * mean_target => Some(b),
         (Some(p), _) => Some(p),

@@ -990,9 +990,8 @@ pub fn choose_models(
                 _ => &params,
             };
             let halves = |p: &tracer::Params| -> Result<Vec<[glam::Vec3; 2]>, FitError> {
-                let half = (s.holdout_spp / 2).max(1);
-                let a = ctx.render(p, &own_px, half, key::SELECT_EMISSION_TEST)?;
-                let b = ctx.render(p, &own_px, half, key::SELECT_EMISSION_TEST ^ key::SECOND_ESTIMATE)?;
+                let [(spp_a, key_a), (spp_b, key_b)] = paired::half_paths(s.holdout_spp, key::SELECT_EMISSION_TEST);
+                let (a, b) = (ctx.render(p, &own_px, spp_a, key_a)?, ctx.render(p, &own_px, spp_b, key_b)?);
                 Ok(a.into_iter().zip(b).map(|(a, b)| [a, b]).collect())
             };
             let (kept_halves, alt_halves) = (halves(kept_params)?, halves(&alt_params)?);
