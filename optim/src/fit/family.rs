@@ -8,15 +8,17 @@
 //! probes start"): started at the dielectric's diffuse colour they stay near it. The probes are weighed by the unbiased
 //! RMS error of their profile solves, and the metal tests keep a metal where it passes on the L1 of two half-path
 //! renders' mean or on their unbiased squared error ("An unbiased test for metals"): the L1 of one render, which the
-//! renders' noise inflates the more the brighter and sharper the lobe, refused metals near the truth. The objects the
-//! first look made metal face the same comparison the other way: a metal lobe stays only where the held-out pixels
-//! prefer it to the best dielectric lobe under the settled light, else that dielectric lobe replaces it ("Metals that
-//! the first look chose, looked at again"). Last, every dielectric lobe faces the object's best Lambert surface under
-//! the same light, which replaces it unless the held-out pixels prefer the lobe ("Lobes under the settled light").
+//! renders' noise inflates the more the brighter and sharper the lobe, refused metals near the truth. These tests
+//! render at [`METAL_TEST_PATHS`] times the held-out paths ("The metal tests at four times the held-out paths").
+//! The objects the first look made metal face the same comparison the other way: a metal lobe stays only where the
+//! held-out pixels prefer it to the best dielectric lobe under the settled light, else that dielectric lobe replaces
+//! it ("Metals that the first look chose, looked at again"). Last, every dielectric lobe faces the object's best
+//! Lambert surface under the same light, which replaces it unless the held-out pixels prefer the lobe ("Lobes under
+//! the settled light").
 
 use super::jacobian::Ctx;
 use super::layout::{self, BASE_COLOR, METALLIC, ROUGHNESS, SPECULAR, idx};
-use super::paired::{MIN_GAIN, Statistic, T_KEEP, Verdict, sequential_lobe_test};
+use super::paired::{METAL_TEST_PATHS, MIN_GAIN, Statistic, T_KEEP, Verdict, sequential_lobe_test};
 use super::pixels::{PixelSets, Sample};
 use super::roughness::{self, TRIAL_ROUGHNESS, TRIAL_SPECULAR, profile_samples};
 use super::{FitError, ObjectFitSettings};
@@ -228,6 +230,7 @@ fn switch_to_metals(
     why: &mut [Vec<String>],
     progress: &dyn crate::Progress,
 ) -> Result<(), FitError> {
+    let s = &metal_test_settings(s);
     let verdicts = sequential_lobe_test(
         ctx,
         s,
@@ -329,7 +332,7 @@ fn recheck_metals(
     let keys = (key::SELECT_METAL, key::SELECT_METAL_TEST);
     let (xd, verdicts) = against_alternatives(
         ctx,
-        s,
+        &metal_test_settings(s),
         sets,
         (lobe_test, mean_target),
         x,
@@ -469,6 +472,11 @@ fn dielectric_lobe(
     xd[idx(k, SPECULAR)] = d.specular;
     xd[idx(k, METALLIC)] = metallic;
     Ok(())
+}
+
+/// `s` with the metal tests' held-out paths ([`METAL_TEST_PATHS`] × `holdout_spp`).
+fn metal_test_settings(s: &ObjectFitSettings) -> ObjectFitSettings {
+    ObjectFitSettings { holdout_spp: s.holdout_spp.saturating_mul(METAL_TEST_PATHS), ..s.clone() }
 }
 
 /// Whether the second look keeps a metal lobe: it beats the object's model, and then (tested only where it

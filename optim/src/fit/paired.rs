@@ -88,6 +88,11 @@ impl Stop {
 /// best lobe changes its L1 by 0.1–0.3 %, docs/optim/design-measurements.md), so most walls stop at the first
 /// look.
 pub(crate) const FIRST_LOOK: usize = 256;
+/// Times `object.holdout_spp` at which the tests between the lobe families (metal against dielectric or Lambert)
+/// render their two models. A metal is the noisier model, the more so the sharper its lobe, and its tests are
+/// a small part of the object stage (13 s of the corpus house's ~8 min at 1×), so they trace more paths than the
+/// other held-out tests.
+pub(crate) const METAL_TEST_PATHS: u32 = 4;
 
 /// Whether a test can stop after `n` of its `n_full` pixels because on all of them it could not plausibly
 /// pass: the upper confidence bound of the mean gain, `mean + T_KEEP · se` (one-sided 0.1 %), is below what a

@@ -21,12 +21,14 @@
 //!   start at the object's area-mean base colour and take [`FAMILY_STEPS`] ratio steps of one factor per
 //!   channel ([`super::ratio::ratio_steps`] with [`Update::OneFactor`]) on the fit pixels, every other
 //!   triangle held. Of the alternatives, the one of lowest loss at its last step is tested.
-//! - **Test**: on the test pixels the two fits are rendered twice each at half of `object.holdout_spp` paths
-//!   with common random numbers, and the other family is kept where it fits better on the L1 of the two
-//!   renders' mean or on their unbiased squared error, with t > [`T_KEEP`](crate::fit::paired::T_KEEP) and a
-//!   gain above [`MIN_GAIN`](crate::fit::paired::MIN_GAIN) of the pixels' mean radiance: the object stage's
-//!   metal test ([`crate::fit::paired`]), in its sequential looks (256, 512, … of the test pixels, stopped once
-//!   the test cannot pass or clearly passes).
+//! - **Test**: on the test pixels the two fits are rendered twice each at half of
+//!   [`METAL_TEST_PATHS`](crate::fit::paired::METAL_TEST_PATHS) × `object.holdout_spp` paths with common
+//!   random numbers, and the other family is kept where it fits better on the L1 of the two renders' mean or on
+//!   their unbiased squared error, with t > [`T_KEEP`](crate::fit::paired::T_KEEP) and a gain above
+//!   [`MIN_GAIN`](crate::fit::paired::MIN_GAIN) of the pixels' mean radiance: the object stage's metal test
+//!   ([`crate::fit::paired`]), in its sequential looks (256, 512, … of the test pixels, stopped once the test
+//!   cannot pass or clearly passes). An alternative whose colour its steps took to white in every channel, the
+//!   top of the domain, is not kept ([`clamped_white`]).
 //! - **Blends carry the burden**: a blend is the richer model (one more parameter than either family), which the
 //!   object stage keeps only where it pays; here it stays only where it passes the same test against the best
 //!   pure family (the roles swapped), and otherwise that family replaces it. On the corpus house 5 of 6 blends
@@ -96,6 +98,16 @@ pub fn fit_rows(n: usize) -> usize {
 #[must_use]
 pub fn is_blend(metallic: f32) -> bool {
     metallic > 1e-3 && metallic < 1.0 - 1e-3
+}
+
+/// Whether an alternative's one colour sits at the top of the base colour's domain in every channel: its ratio
+/// steps asked for more light than any surface reflects, so what it fits better is light missing from its pixels
+/// (a neighbour's wrong model, a lamp fitted dim), not its family, and it replaces no model. Tested at four times
+/// the held-out paths, the metal-lamp fixture's white ceiling, beside a floor put in as a metal, passed as a metal
+/// of colour (1, 1, 1) at t = 3.4 (docs/optim/design-measurements.md, "The metal tests at four times the held-out
+/// paths").
+fn clamped_white(base_color: Vec3) -> bool {
+    base_color.min_element() >= 1.0
 }
 
 /// One object's look.
@@ -247,11 +259,11 @@ pub fn family_look(
         let (before, after) = if blend { (&alt_p, &own_p) } else { (&own_p, &alt_p) };
         let verdict = test_alternative(inputs, scene, &test, (before, after), (o, round), &muted)?;
         let mean_target = mean_target(&test);
-        let passes = verdict.passes(mean_target) != blend;
-        let sign = if blend { -1.0 } else { 1.0 };
-        let signed = |(g, t): (f64, f64)| (sign * g, sign * t);
         // One colour for the object (a uniform start moved by one factor per channel).
         let base_color = alt.first().map_or(mean.base_color, |m| m.base_color);
+        let passes = verdict.passes(mean_target) != blend && (blend || !clamped_white(base_color));
+        let sign = if blend { -1.0 } else { 1.0 };
+        let signed = |(g, t): (f64, f64)| (sign * g, sign * t);
         let look = Look {
             object: o,
             metal_roughness: alt.first().filter(|m| m.metallic >= 0.5).map(|m| m.roughness),
@@ -307,7 +319,7 @@ fn test_alternative(
     (object, round): (usize, u32),
     progress: &dyn crate::Progress,
 ) -> Result<Verdict, TriangleError> {
-    let spp = (inputs.object.holdout_spp / 2).max(1);
+    let spp = (inputs.object.holdout_spp.saturating_mul(paired::METAL_TEST_PATHS) / 2).max(1);
     let seed = inputs.settings.seed;
     let (r_before, r_after) =
         (tracer::Renderer::new(scene, before, inputs.tracer)?, tracer::Renderer::new(scene, after, inputs.tracer)?);
@@ -365,6 +377,14 @@ mod tests {
             on_object,
             bary: Vec2::ZERO,
         }
+    }
+
+    #[test]
+    fn only_an_alternative_white_to_the_bound_in_every_channel_counts_as_clamped() {
+        assert!(clamped_white(Vec3::ONE));
+        // A silver's colour, near but under the bound, and a colour clamped in one channel only, are fitted.
+        assert!(!clamped_white(Vec3::new(0.97, 0.96, 0.91)));
+        assert!(!clamped_white(Vec3::new(1.0, 1.0, 0.9)));
     }
 
     #[test]
