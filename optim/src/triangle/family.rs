@@ -27,8 +27,8 @@
 //!   their unbiased squared error, with t > [`T_KEEP`](crate::fit::paired::T_KEEP) and a gain above
 //!   [`MIN_GAIN`](crate::fit::paired::MIN_GAIN) of the pixels' mean radiance: the object stage's metal test
 //!   ([`crate::fit::paired`]), in its sequential looks (256, 512, … of the test pixels, stopped once the test
-//!   cannot pass or clearly passes). An alternative whose colour its steps took to white in every channel, the
-//!   top of the domain, is not kept ([`clamped_white`]).
+//!   cannot pass or clearly passes). An alternative to a pure family whose colour its steps took to white in
+//!   every channel, the top of the domain, is not kept ([`clamped_white`]).
 //! - **Blends carry the burden**: a blend is the richer model (one more parameter than either family), which the
 //!   object stage keeps only where it pays; here it stays only where it passes the same test against the best
 //!   pure family (the roles swapped), and otherwise that family replaces it. On the corpus house 5 of 6 blends
@@ -102,10 +102,11 @@ pub fn is_blend(metallic: f32) -> bool {
 
 /// Whether an alternative's one colour sits at the top of the base colour's domain in every channel: its ratio
 /// steps asked for more light than any surface reflects, so what it fits better is light missing from its pixels
-/// (a neighbour's wrong model, a lamp fitted dim), not its family, and it replaces no model. Tested at four times
-/// the held-out paths, the metal-lamp fixture's white ceiling, beside a floor put in as a metal, passed as a metal
-/// of colour (1, 1, 1) at t = 3.4 (docs/optim/design-measurements.md, "The metal tests at four times the held-out
-/// paths").
+/// (a neighbour's wrong model, a lamp fitted dim), not its family, and it replaces no pure family. (A blend is
+/// still replaced by its best pure family unless it beats it: the burden of proof stays on the richer model.)
+/// Tested at four times the held-out paths, the metal-lamp fixture's white ceiling, beside a floor put in as a
+/// metal, passed as a metal of colour (1, 1, 1) at t = 3.4 (docs/optim/design-measurements.md, "The metal tests
+/// at four times the held-out paths").
 fn clamped_white(base_color: Vec3) -> bool {
     base_color.min_element() >= 1.0
 }
