@@ -102,7 +102,7 @@ pub(super) fn second_look(
         let key = key::SELECT_METAL + k as u64;
         let unbiased = |x: &[f64], r: f64| -> Result<f64, FitError> {
             let p = roughness::profile_unbiased(ctx, x, k, r, (&samples, spp, key))?;
-            Ok(p.rms.unwrap_or(p.loss))
+            Ok(p.rms_or_loss())
         };
         let current = unbiased(x, x[idx(k, ROUGHNESS)])?;
         let mut at_metal = x.to_vec();

@@ -133,6 +133,14 @@ pub struct ProfilePoint {
     pub rms: Option<f64>,
 }
 
+impl ProfilePoint {
+    /// The unbiased RMS error where the point has one ([`profile_unbiased`]), else the L1 loss of its one render.
+    #[must_use]
+    pub fn rms_or_loss(&self) -> f64 {
+        self.rms.unwrap_or(self.loss)
+    }
+}
+
 /// The cap on the specular strength of the comparison solve behind [`ProfilePoint::loss_half_specular`]: half
 /// the dielectric's range (F0 ≤ 0.04 instead of 0.08).
 pub const HALF_SPECULAR: f64 = 0.5;
@@ -360,7 +368,7 @@ impl Rank {
     fn of(self, p: &ProfilePoint) -> f64 {
         match self {
             Rank::L1 => p.loss,
-            Rank::Rms => p.rms.unwrap_or(p.loss),
+            Rank::Rms => p.rms_or_loss(),
         }
     }
 }

@@ -190,7 +190,7 @@ pub fn best_lobe_without_emission(
         base[idx(k, ROUGHNESS)] = p.roughness;
         base[idx(k, SPECULAR)] = p.specular;
         tracing::debug!(object = k, metallic, ?p, "lobe without emission");
-        let rms = p.rms.unwrap_or(p.loss);
+        let rms = p.rms_or_loss();
         if best.as_ref().is_none_or(|(_, l)| rms < *l) {
             best = Some((base, rms));
         }
