@@ -207,6 +207,16 @@ def test_scorer_perfect_and_perturbed(tiny, tmp_path):
     assert shifted[("albedo_l1", "all")] == pytest.approx(0.1, abs=1e-6)
     assert shifted[("emission_rel_error", "mean")] == pytest.approx(0.2, abs=1e-6)
     assert shifted[("emitter_iou", "objects")] == 1.0
+    # The per-object records behind the L1: one per seen non-emitting object, each 0.1 off, their mean the row.
+    records = score.object_errors(tiny, tmp_path / "shifted")
+    assert [r["id"] for r in records] == sorted(o["id"] for o in gt["objects"] if o["seen"] and not o["emitting"])
+    assert all(r["l1"] == pytest.approx(0.1, abs=1e-6) for r in records)
+    assert np.mean([r["l1"] for r in records]) == pytest.approx(shifted[("albedo_l1", "all")], abs=1e-12)
+    written = score.write_object_csv(records, tmp_path / "out" / "tiny.csv")
+    assert written.name == "tiny.objects.csv"
+    with open(written) as f:
+        read = list(csv.DictReader(f))
+    assert list(read[0]) == list(score.OBJECT_FIELDS) and len(read) == len(records)
     # Pure per-pixel function: truth as estimate is perfect; +0.1 on albedos ≤ 0.9 is MSE 0.01 = 20 dB.
     rng = np.random.default_rng(0)
     t = [rng.uniform(0, 0.9, (8, 10, 3)) for _ in range(2)]

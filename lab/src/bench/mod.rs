@@ -164,6 +164,7 @@ pub fn timed_point(
                 &fit.outcome.params,
             )?;
             let specular: Vec<bool> = fit.outcome.per_object.iter().map(|o| o.model.contains("specular")).collect();
+            let constrained: Vec<bool> = fit.outcome.per_object.iter().map(|o| o.constrained).collect();
             let round_inputs = optim::triangle::RoundInputs {
                 cameras: &cameras,
                 images: &images,
@@ -171,6 +172,7 @@ pub fn timed_point(
                 object: &setup.object,
                 tracer: &tracer_settings,
                 specular: &specular,
+                constrained: &constrained,
             };
             let state = optim::triangle::run_rounds(&round_inputs, start, &mut |_| Ok(()), &optim::NoProgress)?;
             Some(TimedTriangle { state, seconds: t_tri.elapsed().as_secs_f64() })

@@ -58,8 +58,9 @@ type LightRow = (Vec<[f64; 3]>, Vec<[f64; 3]>);
 type Column = Vec<[f64; 3]>;
 
 /// One Gauss–Newton step on the light with the per-triangle textures fixed in shape: the unknowns are the emission
-/// of `emitters` (objects) and, per colour channel, one scale s_o of the base colours of every non-emitting object
-/// (ρ_t → s_o·ρ_t for its triangles). Radiance is linear in emission, and the ratio steps only set each triangle's
+/// of `emitters` (objects) and, per colour channel, one scale s_o of the base colours of every `scaled` object
+/// ([`scaled_objects`]: non-emitting and constrained; ρ_t → s_o·ρ_t for its triangles). Radiance is linear in
+/// emission, and the ratio steps only set each triangle's
 /// value *given* the light: a light that is off by a factor is compensated by albedos off by its inverse (the
 /// albedo/emission scale valley, which only interreflection pins down), so re-solving the emission alone with those
 /// albedos returns the same light. Moving the light and every object's albedo scale together crosses that valley,
@@ -82,7 +83,7 @@ fn solve_light(
     strata: &[Stratum],
     state: &mut TriangleState,
     emitters: &[usize],
-    free: &[bool],
+    (free, scaled): (&[bool], &[bool]),
     round: u32,
     pass: u32,
     work: &mut tracer::TraceStats,
@@ -105,7 +106,6 @@ fn solve_light(
     let drawn: Vec<&TriSample> = rows.iter().map(|&j| &samples[j]).collect();
     let pix: Vec<PixelRef> = drawn.iter().map(|p| p.pixel).collect();
     let targets: Vec<Vec3> = drawn.iter().map(|p| p.target).collect();
-    let scaled = scaled_objects(&state.face_object, free, objects);
     let scaled: Vec<usize> = (0..objects).filter(|&o| scaled[o]).collect();
     let mut slot = vec![usize::MAX; objects];
     for (i, &o) in scaled.iter().enumerate() {
@@ -213,11 +213,19 @@ fn solve_light(
 }
 
 /// Per object, whether its albedo scale is an unknown of the light re-solve: it has a fitted (`free`,
-/// non-emitting) triangle.
-fn scaled_objects(face_object: &[u32], free: &[bool], objects: usize) -> Vec<bool> {
+/// non-emitting) triangle and the object stage found its material `constrained` by the photos. An unconstrained
+/// object (seen in fewer than the object stage's minimum of training pixels, or in none) has the object stage's
+/// estimate weighed against a prior by its standard error (`crate::fit::prior`); a scale of its own here rests on
+/// those few pixels, or on what it reflects, without that prior, and undid it: on the corpus house a sphere seen in
+/// 4 pixels, at its category's mean (0.52, 0.54, 0.49) after the object stage, came out of the light re-solve at
+/// (0.47, 0.18, 0.48), while `materials.json` still called it unconstrained.
+fn scaled_objects(face_object: &[u32], free: &[bool], constrained: &[bool], objects: usize) -> Vec<bool> {
     let mut scaled = vec![false; objects];
     for (&o, &f) in face_object.iter().zip(free) {
         scaled[o as usize] |= f;
+    }
+    for (o, s) in scaled.iter_mut().enumerate() {
+        *s &= constrained.get(o).copied().unwrap_or(true);
     }
     scaled
 }
@@ -400,7 +408,7 @@ pub fn refine_light(
     let free: Vec<bool> = state.face_object.iter().map(|&o| !emits[o as usize]).collect();
     let objects = state.emission.len();
     let strata = object_strata(samples, &state.face_object, objects);
-    let scaled = scaled_objects(&state.face_object, &free, objects);
+    let scaled = scaled_objects(&state.face_object, &free, inputs.constrained, objects);
     let mut work = tracer::TraceStats::default();
     let start = state.emission.clone();
     let kept_materials = state.materials.clone();
@@ -426,7 +434,18 @@ pub fn refine_light(
             // Keyed by the step's place in the budget, so a cycle's draws do not depend on where the previous
             // one stopped.
             let pass = cycle * max_steps + i + 1;
-            let scale = solve_light(inputs, scene, samples, &strata, state, &emitters, &free, round, pass, &mut work)?;
+            let scale = solve_light(
+                inputs,
+                scene,
+                samples,
+                &strata,
+                state,
+                &emitters,
+                (&free, &scaled),
+                round,
+                pass,
+                &mut work,
+            )?;
             progress.set_position(i as u64 + 1);
             steps = i + 1;
             for (c, s) in cumulative.iter_mut().zip(&scale) {
@@ -720,6 +739,16 @@ fn fit_change(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_constrained_objects_with_a_fitted_triangle_have_a_scale() {
+        // Objects 0–3: fitted and constrained; fitted but unconstrained; an emitter (no fitted triangle);
+        // fitted, and beyond the `constrained` slice (counts as constrained).
+        let face_object = [0, 0, 1, 2, 3];
+        let free = [true, true, true, false, true];
+        let constrained = [true, false, true];
+        assert_eq!(scaled_objects(&face_object, &free, &constrained, 4), vec![true, false, false, true]);
+    }
 
     #[test]
     fn the_light_step_recovers_emission_and_albedo_scale_from_noisy_columns() {

@@ -24,7 +24,8 @@
 //!   triangle's pixels, pairs: triangles of one object sharing an edge, λ = `smoothness`) with Gauss–Seidel
 //!   sweeps: an unobserved triangle takes the mean of its neighbours, and a region nobody sees takes its
 //!   object's current value (`ratio::fill_unobserved`: the value the object's seen pixels give at that step,
-//!   not the one the stage started from). Emitting objects keep their per-object materials. Where an object's
+//!   not the one the stage started from). Emitting objects keep their per-object materials, and so do
+//!   the objects the object stage left unconstrained ([`RoundInputs::constrained`]). Where an object's
 //!   steps reverse direction (a bright object lit by its own interreflections, whose value the whole step
 //!   overshoots), only a fraction of the step is taken, halved at each reversal (`ratio::relax_objects`).
 //! - **Light** ([`light::refine_light`]), once the mesh is final (the last round, or a round whose split
@@ -34,7 +35,9 @@
 //!   albedo/emission scale valley that only interreflection pins down). Re-solving the emission alone with
 //!   those albedos returns the same light (measured: light 6.5 % → 5–9 % off per channel, PSNR 33.1 dB); so,
 //!   as the object stage's joint step does, the light moves together with every non-emitting object's
-//!   albedo *scale* (ρ_t → s_o·ρ_t, texture shape fixed): [`light::LIGHT_CYCLES`] (2) cycles of
+//!   albedo *scale* (ρ_t → s_o·ρ_t, texture shape fixed; not an object the object stage left
+//!   unconstrained, whose value is its estimate weighed against a prior, [`crate::fit::prior`]):
+//!   [`light::LIGHT_CYCLES`] (2) cycles of
 //!   Gauss–Newton steps on (e, s), averaged after the first [`light::LIGHT_BURN_IN`] (2), then
 //!   `light_fit_steps` ratio steps against the averaged light. Each object's averaged scale is shrunk toward
 //!   the scale common to all objects as far as its steps' scatter leaves it unknown
@@ -322,6 +325,11 @@ pub struct RoundInputs<'a> {
     pub tracer: &'a tracer::TracerSettings,
     /// Per object: its model has a specular lobe (roughness/metallic are then fitted per triangle by Adam).
     pub specular: &'a [bool],
+    /// Per object: the object stage found its material constrained by the photos (`materials.json`'s
+    /// `constrained`; an object missing from the slice counts as constrained). An unconstrained object keeps
+    /// the object stage's material: the ratio steps do not fit it ([`ratio::fit_round`]) and its albedo scale is
+    /// no unknown of the light re-solve ([`light::refine_light`]).
+    pub constrained: &'a [bool],
 }
 
 impl TriangleState {

@@ -66,20 +66,34 @@ pub fn synth_scene(name: &str, spp: u32) -> (lab::synth::BuiltScene, Vec<ingest:
     (built, images)
 }
 
-/// A per-triangle round's settings for a test, owned: `config` as given, the object fit's defaults and no
-/// specular object; [`RoundSetup::inputs`] lends them with a built scene as a round's inputs.
+/// A per-triangle round's settings for a test, owned: `config` as given, the object fit's defaults, no
+/// specular object and every object constrained; [`RoundSetup::inputs`] lends them with a built scene as a
+/// round's inputs.
 pub struct RoundSetup {
     pub config: workflow::config::TriangleConfig,
     settings: optim::triangle::TriangleSettings,
     object: optim::fit::ObjectFitSettings,
     specular: Vec<bool>,
+    constrained: Vec<bool>,
 }
 
 impl RoundSetup {
     /// `config` for a scene of `objects` objects.
     pub fn new(config: workflow::config::TriangleConfig, objects: usize) -> Self {
         let settings = optim::triangle::TriangleSettings::from(&config);
-        Self { config, settings, object: optim::fit::ObjectFitSettings::default(), specular: vec![false; objects] }
+        Self {
+            config,
+            settings,
+            object: optim::fit::ObjectFitSettings::default(),
+            specular: vec![false; objects],
+            constrained: vec![true; objects],
+        }
+    }
+
+    /// Marks object `o` as one the object stage left unconstrained (`materials.json`'s `constrained`: false).
+    pub fn unconstrained(mut self, o: usize) -> Self {
+        self.constrained[o] = false;
+        self
     }
 
     /// A round's inputs on `built` and its photos `images`.
@@ -95,6 +109,7 @@ impl RoundSetup {
             object: &self.object,
             tracer: &built.settings,
             specular: &self.specular,
+            constrained: &self.constrained,
         }
     }
 }

@@ -108,8 +108,9 @@ def main(argv=None) -> int:
         t = time.time()
         rows = score.score(a.scan_dir, a.run_dir, a.renders, a.pipeline, a.render_spp)
         md = score.write_reports(rows, a.out_csv)
+        objects = score.write_object_csv(score.object_errors(a.scan_dir, a.run_dir), a.out_csv)
         print(md.read_text(), end="")
-        print(f"scored in {time.time() - t:.1f} s: {a.out_csv}, {md}")
+        print(f"scored in {time.time() - t:.1f} s: {a.out_csv}, {md}, {objects}")
         return 0
     return 1
 

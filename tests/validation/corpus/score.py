@@ -24,6 +24,12 @@ in the scan frame). Metrics, one CSV row each (`scene,metric,subset,value,count`
 - with an export: `emitter_iou` and `emission_rel_error` (subset `export`, `export mean`) again from the
   export's area-weighted per-object emission (the per-triangle stage may re-solve the lights).
 - `roughness_abs_error` on glossy and metal objects that photos see.
+
+`object_errors` gives the per-object records behind `albedo_l1` (`scripts/corpus score` writes them to
+`<stem>.objects.csv` beside the CSV): per seen, non-emitting true object its label, kind, pixel centres in the
+training photos, the run's model and whether the run found it constrained, the true and estimated base colours
+and their L1. The mean over objects is one number; where it comes from (a few barely seen objects, or a kind of
+surface) is in these rows.
 - `novel_psnr`, `novel_l1`: `pipeline render` of the run from the held-out cameras against Mitsuba's renders
   (subset `run`), and of the per-object truth (`truth-materials`: the ceiling of a per-object fit, which
   includes texture averaging and both renderers' noise).
@@ -334,6 +340,40 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
     if tmp is not None:
         tmp.cleanup()
     return rows
+
+
+OBJECT_FIELDS = ("id", "label", "kind", "pixels", "model", "constrained", "true_r", "true_g", "true_b",
+                 "est_r", "est_g", "est_b", "l1")
+
+
+def object_errors(scan_dir: Path, run_dir: Path) -> list[dict]:
+    """Per seen, non-emitting true object of the scan that the run's `materials.json` lists, in id order: the
+    record behind `albedo_l1` (module docs; the mean of `l1` over the records is the `all` row)."""
+    gt = json.loads((Path(scan_dir) / "ground_truth.json").read_text())
+    est = {int(o["id"]): o for o in json.loads((Path(run_dir) / "materials.json").read_text())["objects"]}
+    out = []
+    for o in sorted(gt["objects"], key=lambda o: o["id"]):
+        if not o["seen"] or o["emitting"] or o["id"] not in est:
+            continue
+        e = est[o["id"]]
+        t, b = o["base_color"], e["base_color"]
+        out.append({"id": o["id"], "label": o["label"], "kind": o["kind"], "pixels": o["pixels"],
+                    "model": e.get("model", ""), "constrained": e.get("constrained", True),
+                    "true_r": t[0], "true_g": t[1], "true_b": t[2], "est_r": b[0], "est_g": b[1], "est_b": b[2],
+                    "l1": float(np.mean(np.abs(np.subtract(b, t))))})
+    return out
+
+
+def write_object_csv(records: list[dict], csv_path: Path) -> Path:
+    """Writes `object_errors`' records to `<stem>.objects.csv` beside `csv_path`; returns that path."""
+    path = Path(csv_path).with_suffix(".objects.csv")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(OBJECT_FIELDS))
+        w.writeheader()
+        for r in records:
+            w.writerow({k: f"{v:.6g}" if isinstance(v, float) else v for k, v in r.items()})
+    return path
 
 
 def write_reports(rows: list[dict], csv_path: Path) -> Path:

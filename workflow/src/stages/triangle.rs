@@ -35,6 +35,11 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let params = materials.params_for(&ids, &plan.output.join("object").join(MATERIALS_FILE))?;
     let specular: Vec<bool> =
         ids.iter().map(|id| materials.objects.iter().any(|o| o.id == *id && o.model.contains("specular"))).collect();
+    // An object `materials.json` does not mark (a file written by hand) counts as constrained.
+    let constrained: Vec<bool> = ids
+        .iter()
+        .map(|id| materials.objects.iter().find(|o| o.id == *id).and_then(|o| o.constrained).unwrap_or(true))
+        .collect();
     let cameras = prepared.tracer_cameras();
     let settings = plan.tracer.settings();
     let triangle = TriangleSettings::from(&plan.triangle);
@@ -45,6 +50,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
         object: &plan.object,
         tracer: &settings,
         specular: &specular,
+        constrained: &constrained,
     };
     let state = match checkpoint::resumable::<TriangleState>(ctx, CHECKPOINT_FORMAT) {
         Some(s) => {
