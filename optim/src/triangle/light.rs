@@ -83,7 +83,7 @@ fn solve_light(
     strata: &[Stratum],
     state: &mut TriangleState,
     emitters: &[usize],
-    (free, scaled): (&[bool], &[bool]),
+    free: &[bool],
     round: u32,
     pass: u32,
     work: &mut tracer::TraceStats,
@@ -106,6 +106,7 @@ fn solve_light(
     let drawn: Vec<&TriSample> = rows.iter().map(|&j| &samples[j]).collect();
     let pix: Vec<PixelRef> = drawn.iter().map(|p| p.pixel).collect();
     let targets: Vec<Vec3> = drawn.iter().map(|p| p.target).collect();
+    let scaled = scaled_objects(&state.face_object, free, objects);
     let scaled: Vec<usize> = (0..objects).filter(|&o| scaled[o]).collect();
     let mut slot = vec![usize::MAX; objects];
     for (i, &o) in scaled.iter().enumerate() {
@@ -212,20 +213,17 @@ fn solve_light(
     Ok(per_object)
 }
 
-/// Per object, whether its albedo scale is an unknown of the light re-solve: it has a fitted (`free`,
-/// non-emitting) triangle and the object stage found its material `constrained` by the photos. An unconstrained
-/// object (seen in fewer than the object stage's minimum of training pixels, or in none) has the object stage's
-/// estimate weighed against a prior by its standard error (`crate::fit::prior`); a scale of its own here rests on
-/// those few pixels, or on what it reflects, without that prior, and undid it: on the corpus house a sphere seen in
-/// 4 pixels, at its category's mean (0.52, 0.54, 0.49) after the object stage, came out of the light re-solve at
-/// (0.47, 0.18, 0.48), while `materials.json` still called it unconstrained.
-fn scaled_objects(face_object: &[u32], free: &[bool], constrained: &[bool], objects: usize) -> Vec<bool> {
+/// Per object, whether its albedo scale is an unknown of the light re-solve: it has a fitted (`free`) triangle
+/// ([`super::fitted_triangles`]: not an emitter, nor an object the object stage left unconstrained). Such an
+/// object's value is the object stage's estimate weighed against a prior by its standard error
+/// (`crate::fit::prior`); a scale of its own here rests on its few pixels, or on what it reflects, without that
+/// prior, and undid it: on the corpus house a sphere seen in 4 pixels, at its category's mean (0.52, 0.54, 0.49)
+/// after the object stage, came out of the light re-solve at (0.47, 0.18, 0.48), while `materials.json` still
+/// called it unconstrained.
+fn scaled_objects(face_object: &[u32], free: &[bool], objects: usize) -> Vec<bool> {
     let mut scaled = vec![false; objects];
     for (&o, &f) in face_object.iter().zip(free) {
         scaled[o as usize] |= f;
-    }
-    for (o, s) in scaled.iter_mut().enumerate() {
-        *s &= constrained.get(o).copied().unwrap_or(true);
     }
     scaled
 }
@@ -405,10 +403,10 @@ pub fn refine_light(
         return Ok(None);
     }
     let min_steps = LIGHT_MIN_STEPS.min(max_steps);
-    let free: Vec<bool> = state.face_object.iter().map(|&o| !emits[o as usize]).collect();
+    let free = super::fitted_triangles(&state.face_object, &state.emission, inputs.constrained);
     let objects = state.emission.len();
     let strata = object_strata(samples, &state.face_object, objects);
-    let scaled = scaled_objects(&state.face_object, &free, inputs.constrained, objects);
+    let scaled = scaled_objects(&state.face_object, &free, objects);
     let mut work = tracer::TraceStats::default();
     let start = state.emission.clone();
     let kept_materials = state.materials.clone();
@@ -434,18 +432,7 @@ pub fn refine_light(
             // Keyed by the step's place in the budget, so a cycle's draws do not depend on where the previous
             // one stopped.
             let pass = cycle * max_steps + i + 1;
-            let scale = solve_light(
-                inputs,
-                scene,
-                samples,
-                &strata,
-                state,
-                &emitters,
-                (&free, &scaled),
-                round,
-                pass,
-                &mut work,
-            )?;
+            let scale = solve_light(inputs, scene, samples, &strata, state, &emitters, &free, round, pass, &mut work)?;
             progress.set_position(i as u64 + 1);
             steps = i + 1;
             for (c, s) in cumulative.iter_mut().zip(&scale) {
@@ -745,9 +732,11 @@ mod tests {
         // Objects 0–3: fitted and constrained; fitted but unconstrained; an emitter (no fitted triangle);
         // fitted, and beyond the `constrained` slice (counts as constrained).
         let face_object = [0, 0, 1, 2, 3];
-        let free = [true, true, true, false, true];
+        let emission = [Vec3::ZERO, Vec3::ZERO, Vec3::ONE, Vec3::ZERO];
         let constrained = [true, false, true];
-        assert_eq!(scaled_objects(&face_object, &free, &constrained, 4), vec![true, false, false, true]);
+        let free = crate::triangle::fitted_triangles(&face_object, &emission, &constrained);
+        assert_eq!(free, vec![true, true, false, false, true]);
+        assert_eq!(scaled_objects(&face_object, &free, 4), vec![true, false, false, true]);
     }
 
     #[test]

@@ -25,7 +25,7 @@
 //!   sweeps: an unobserved triangle takes the mean of its neighbours, and a region nobody sees takes its
 //!   object's current value (`ratio::fill_unobserved`: the value the object's seen pixels give at that step,
 //!   not the one the stage started from). Emitting objects keep their per-object materials, and so do
-//!   the objects the object stage left unconstrained ([`RoundInputs::constrained`]). Where an object's
+//!   the objects the object stage left unconstrained ([`fitted_triangles`]). Where an object's
 //!   steps reverse direction (a bright object lit by its own interreflections, whose value the whole step
 //!   overshoots), only a fraction of the step is taken, halved at each reversal (`ratio::relax_objects`).
 //! - **Light** ([`light::refine_light`]), once the mesh is final (the last round, or a round whose split
@@ -327,9 +327,26 @@ pub struct RoundInputs<'a> {
     pub specular: &'a [bool],
     /// Per object: the object stage found its material constrained by the photos (`materials.json`'s
     /// `constrained`; an object missing from the slice counts as constrained). An unconstrained object keeps
-    /// the object stage's material: the ratio steps do not fit it ([`ratio::fit_round`]) and its albedo scale is
-    /// no unknown of the light re-solve ([`light::refine_light`]).
+    /// the object stage's material ([`fitted_triangles`]).
     pub constrained: &'a [bool],
+}
+
+/// Per triangle, whether the stage fits its material: its object does not emit now (`emission`, per object)
+/// and is `constrained` (an object missing from that slice counts as constrained). Emitting objects keep their
+/// per-object materials (emission and materials are entangled there; their emission is re-solved by
+/// [`light::refine_light`]). An object the object stage left unconstrained keeps its value, its estimate weighed
+/// against a prior ([`crate::fit::prior`]): the few pixels that made it unconstrained are no better evidence
+/// here. The ratio steps ([`ratio::fit_round`]) fit these triangles, and the light re-solve scales their objects.
+#[must_use]
+pub fn fitted_triangles(face_object: &[u32], emission: &[Vec3], constrained: &[bool]) -> Vec<bool> {
+    face_object
+        .iter()
+        .map(|&o| {
+            let o = o as usize;
+            let emits = emission[o].max_element() > 0.0;
+            !emits && constrained.get(o).copied().unwrap_or(true)
+        })
+        .collect()
 }
 
 impl TriangleState {

@@ -426,14 +426,9 @@ pub fn fit_pass(
     progress: &dyn crate::Progress,
 ) -> Result<Fitted, TriangleError> {
     let cfg = inputs.settings;
-    // Emitting objects keep their per-object materials (emission and materials are entangled there); their
-    // emission is re-solved between passes of ratio steps. Only objects that emit now may emit: the object
-    // stage's model decision (no emission) holds every other object at 0. Objects the object stage left
-    // unconstrained keep its value too (its estimate weighed against a prior, `crate::fit::prior`): the few
-    // pixels that made it unconstrained are no better evidence here.
-    let emits: Vec<bool> = state.emission.iter().map(|e| e.max_element() > 0.0).collect();
-    let constrained = |o: usize| inputs.constrained.get(o).copied().unwrap_or(true);
-    let free: Vec<bool> = state.face_object.iter().map(|&o| !emits[o as usize] && constrained(o as usize)).collect();
+    // Only objects that emit now may emit: the object stage's model decision (no emission) holds every other
+    // object at 0. Emitters and unconstrained objects keep their materials (`fitted_triangles`).
+    let free = super::fitted_triangles(&state.face_object, &state.emission, inputs.constrained);
     let nbrs = neighbours(state);
     let keys: Vec<u64> =
         pass_steps(cfg.fit_steps, cfg.light_fit_steps, pass).map(|k| key::triangle(round, k)).collect();

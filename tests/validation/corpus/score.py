@@ -25,17 +25,18 @@ in the scan frame). Metrics, one CSV row each (`scene,metric,subset,value,count`
   export's area-weighted per-object emission (the per-triangle stage may re-solve the lights).
 - `roughness_abs_error` on glossy and metal objects that photos see.
 
-`object_errors` gives the per-object records behind `albedo_l1` (`scripts/corpus score` writes them to
-`<stem>.objects.csv` beside the CSV): per seen, non-emitting true object its label, kind, pixel centres in the
-training photos, the run's model and whether the run found it constrained, the true and estimated base colours
-and their L1. The mean over objects is one number; where it comes from (a few barely seen objects, or a kind of
-surface) is in these rows.
 - `novel_psnr`, `novel_l1`: `pipeline render` of the run from the held-out cameras against Mitsuba's renders
   (subset `run`), and of the per-object truth (`truth-materials`: the ceiling of a per-object fit, which
   includes texture averaging and both renderers' noise).
   Exposure: both images are multiplied by 1 / (99th percentile of the true render's luminance), then
   clamped to [0, 1]; PSNR = 10·log10(1 / MSE) per view, averaged over views; L1 = mean absolute difference
   after the same normalisation.
+
+`object_errors` gives the per-object records behind `albedo_l1` (`scripts/corpus score` writes them to
+`<stem>.objects.csv` beside the CSV): per seen, non-emitting true object its label, kind, pixel centres in the
+training photos, the run's model and whether the run found it constrained, the true and estimated base colours
+and their L1. The mean over objects is one number; where it comes from (a few barely seen objects, or a kind of
+surface) is in these rows.
 """
 from __future__ import annotations
 
@@ -52,6 +53,17 @@ from . import cameras as cams
 from . import layout
 
 KINDS = ("diffuse", "glossy", "metal")
+
+
+def scored_objects(truth: dict[int, dict], est: dict[int, dict]) -> list[dict]:
+    """The true objects `albedo_l1` is over, in the ground truth's order: seen by a training photo, not
+    emitting, and listed by the run."""
+    return [o for o in truth.values() if o["seen"] and not o["emitting"] and o["id"] in est]
+
+
+def base_color_l1(estimate: dict, true: dict) -> float:
+    """Mean absolute RGB difference of two objects' base colours."""
+    return float(np.mean(np.abs(np.subtract(estimate["base_color"], true["base_color"]))))
 
 
 def psnr(mse: float) -> float:
@@ -273,10 +285,10 @@ def score(scan_dir: Path, run_dir: Path, renders: Path | None = None, pipeline: 
         row("albedo_export_coverage", "pixels", covered / n if n else math.nan, n)
 
     # Per-object albedo L1 and roughness.
-    seen = [o for o in truth.values() if o["seen"] and not o["emitting"] and o["id"] in est]
+    seen = scored_objects(truth, est)
 
     def l1_row(subset, objs):
-        l1 = [float(np.mean(np.abs(np.subtract(est[o["id"]]["base_color"], o["base_color"])))) for o in objs]
+        l1 = [base_color_l1(est[o["id"]], o) for o in objs]
         row("albedo_l1", subset, float(np.mean(l1)) if l1 else math.nan, len(l1))
 
     for kind in (*KINDS, "all"):
@@ -347,20 +359,19 @@ OBJECT_FIELDS = ("id", "label", "kind", "pixels", "model", "constrained", "true_
 
 
 def object_errors(scan_dir: Path, run_dir: Path) -> list[dict]:
-    """Per seen, non-emitting true object of the scan that the run's `materials.json` lists, in id order: the
-    record behind `albedo_l1` (module docs; the mean of `l1` over the records is the `all` row)."""
-    gt = json.loads((Path(scan_dir) / "ground_truth.json").read_text())
+    """Per seen, non-emitting true object of the scan that the run's `materials.json` lists (`scored_objects`),
+    in id order: the record behind `albedo_l1` (module docs; the mean of `l1` over the records is the `all`
+    row)."""
+    truth = {o["id"]: o for o in json.loads((Path(scan_dir) / "ground_truth.json").read_text())["objects"]}
     est = {int(o["id"]): o for o in json.loads((Path(run_dir) / "materials.json").read_text())["objects"]}
     out = []
-    for o in sorted(gt["objects"], key=lambda o: o["id"]):
-        if not o["seen"] or o["emitting"] or o["id"] not in est:
-            continue
+    for o in sorted(scored_objects(truth, est), key=lambda o: o["id"]):
         e = est[o["id"]]
         t, b = o["base_color"], e["base_color"]
         out.append({"id": o["id"], "label": o["label"], "kind": o["kind"], "pixels": o["pixels"],
                     "model": e.get("model", ""), "constrained": e.get("constrained", True),
                     "true_r": t[0], "true_g": t[1], "true_b": t[2], "est_r": b[0], "est_g": b[1], "est_b": b[2],
-                    "l1": float(np.mean(np.abs(np.subtract(b, t))))})
+                    "l1": base_color_l1(e, o)})
     return out
 
 
