@@ -51,7 +51,9 @@
 //!    `docs/realistic/README.md`, "Sub-triangle detail".
 //!
 //! Only triangles of objects whose model is diffuse and emits nothing get detail: a specular highlight
-//! depends on the view and would be baked into the albedo, and an emitter's radiance is not ρ·S.
+//! depends on the view and would be baked into the albedo, and an emitter's radiance is not ρ·S. The caller
+//! also leaves out the objects the photos do not constrain (the export's `detail_eligible`), which keep
+//! their value through the per-triangle stage ([`super::fitted_triangles`]).
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;

@@ -110,8 +110,9 @@
 //!   `split_significance` (0.01), whatever the number of triangles and their pixel counts. A significant
 //!   triangle is split when its contrast (largest child mean residual against the triangle's, over its mean
 //!   radiance) exceeds `split_contrast` and it covers ≥ 4·`min_pixels` pixel centres in its best view (the
-//!   footprint limit), smallest p first, within `max_triangles`. Geometry: [`crate::subdivide`] (red 4-way
-//!   split, green/blue closure, parameters inherited from the parent).
+//!   footprint limit), smallest p first, within `max_triangles` (a bound on the mesh's size, not its growth;
+//!   the significant triangles it leaves unsplit are counted, [`RoundRecord::over_budget`]). Geometry:
+//!   [`crate::subdivide`] (red 4-way split, green/blue closure, parameters inherited from the parent).
 //! - **Resume**: a checkpoint after every round that ends with a split (mesh, per-triangle materials and the
 //!   per-object emission, [`TriangleState`]); all random numbers are keyed by (seed, round, pass, step), so a
 //!   resumed run ends where an uninterrupted one ends (tests/triangle_resume.rs, emission included). The light
@@ -179,6 +180,10 @@ pub struct RoundRecord {
     pub refined: usize,
     pub refused: usize,
     pub closure_cut: usize,
+    /// Triangles the split test found significant but left unsplit: the mesh would have outgrown
+    /// `triangle.max_triangles` ([`split::Marks::over_budget`]); 0 in results written before it was counted.
+    #[serde(default)]
+    pub over_budget: usize,
     pub seconds: f64,
     /// Per object: the emission after the round's fit (re-solved with the per-triangle materials); empty in
     /// results written before the emission was re-solved.
@@ -513,6 +518,11 @@ fn collect_pixels(
     pix
 }
 
+/// How many marks a mesh of `n` triangles can still take within `triangle.max_triangles`.
+fn within_budget_of(cfg: &TriangleSettings, n: usize) -> usize {
+    split::within_budget(cfg.max_triangles as usize, n, usize::MAX)
+}
+
 /// Runs the remaining rounds of `state` (fit → split → … → fit). `on_round` receives the state after every
 /// round that ends with a split (a checkpoint); the returned state holds the final fit.
 pub fn run_rounds(
@@ -530,6 +540,15 @@ pub fn run_rounds(
         )));
     }
     let cfg = inputs.settings;
+    if cfg.rounds > 0 && within_budget_of(cfg, state.triangles.len()) == 0 {
+        // The budget bounds the mesh's size, not its growth: a scan already at it keeps its own triangles.
+        progress.note(&format!(
+            "[triangle] the mesh has {} triangles and triangle.max_triangles is {}: no room for a split, so \
+             no triangle will be split",
+            state.triangles.len(),
+            cfg.max_triangles
+        ));
+    }
     while state.rounds_done <= cfg.rounds {
         // The rounds' phase, again at every round: a round's ratio and light steps report as phases of their
         // own (each with its ETA), which replace it while they run.
@@ -547,6 +566,7 @@ pub fn run_rounds(
             refined: 0,
             refused: 0,
             closure_cut: 0,
+            over_budget: 0,
             seconds: 0.0,
             emission: state.emission.clone(),
             families: Vec::new(),
@@ -558,8 +578,10 @@ pub fn run_rounds(
         let mut stop = last;
         let mut applied = false;
         if !last {
-            let marks = split::choose(inputs, &state, &pix.samples, &pix.best_view, &fitted);
+            let split::Marks { marks, over_budget } =
+                split::choose(inputs, &state, &pix.samples, &pix.best_view, &fitted);
             rec.marked = marks.len();
+            rec.over_budget = over_budget;
             if marks.is_empty() {
                 stop = true;
             } else {
@@ -612,9 +634,17 @@ pub fn run_rounds(
         }
         rec.seconds = started.elapsed().as_secs_f64();
         tracing::info!(round, triangles = rec.triangles, marked = rec.marked, refined = rec.refined, "triangle round");
+        let over_budget = if rec.over_budget > 0 {
+            format!(
+                ", {} more significant but over the budget of {} triangles (triangle.max_triangles)",
+                rec.over_budget, cfg.max_triangles
+            )
+        } else {
+            String::new()
+        };
         progress.note(&format!(
-            "[triangle] round {round}: {} triangles, loss {:.5}, {} marked, {} split, {} refused, {} closure cuts \
-             ({:.1} s); emission of the emitters {:?}",
+            "[triangle] round {round}: {} triangles, loss {:.5}, {} marked, {} split, {} refused, {} closure \
+             cuts{over_budget} ({:.1} s); emission of the emitters {:?}",
             rec.triangles,
             rec.loss.last().unwrap_or(&0.0),
             rec.marked,

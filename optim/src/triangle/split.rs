@@ -150,9 +150,19 @@ pub fn evidence(triangles: usize, samples: &[TriSample], fitted: &Fitted) -> Vec
         .collect()
 }
 
+/// The split test's choice in one round.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Marks {
+    /// The triangles to split, ascending.
+    pub marks: Vec<u32>,
+    /// Triangles the test found significant but left unsplit because the mesh would outgrow
+    /// `triangle.max_triangles` (all of them when the mesh is already at or above it).
+    pub over_budget: usize,
+}
+
 /// The triangles to split: those whose children differ significantly after Holm's correction over every
 /// triangle tested in the round (family-wise level `split_significance`) and by more than `split_contrast`,
-/// smallest p first (then largest F), within the budget.
+/// smallest p first (then largest F), within the budget; and how many the budget left out.
 ///
 /// `best_view[t]`: triangle t's pixel centres in the view with the most of them (counted before the pixel
 /// budget, [`super::pixels::TriPixels::best_view`]).
@@ -163,7 +173,7 @@ pub fn choose(
     samples: &[TriSample],
     best_view: &[u32],
     fitted: &Fitted,
-) -> Vec<u32> {
+) -> Marks {
     let cfg = inputs.settings;
     let n = state.triangles.len();
     let ev = evidence(n, samples, fitted);
@@ -195,11 +205,19 @@ pub fn choose(
         .collect();
     tracing::debug!(tested = tested.len(), marked = marks.len(), "split test");
     marks.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.total_cmp(&a.1)).then(a.2.cmp(&b.2)));
-    let room = (cfg.max_triangles as usize).saturating_sub(n) / MAX_GROWTH_PER_MARK;
+    let room = within_budget(cfg.max_triangles as usize, n, marks.len());
+    let over_budget = marks.len() - room;
     marks.truncate(room);
     let mut out: Vec<u32> = marks.into_iter().map(|m| m.2).collect();
     out.sort_unstable();
-    out
+    Marks { marks: out, over_budget }
+}
+
+/// How many of `wanted` marks a mesh of `n` triangles can take without outgrowing `max_triangles`, each mark
+/// counted at its most growth ([`MAX_GROWTH_PER_MARK`]).
+#[must_use]
+pub fn within_budget(max_triangles: usize, n: usize, wanted: usize) -> usize {
+    (max_triangles.saturating_sub(n) / MAX_GROWTH_PER_MARK).min(wanted)
 }
 
 /// Splits the marked triangles of `state`: new mesh, parameters inherited from the parents, midpoint normals
@@ -253,6 +271,16 @@ pub fn apply(state: &mut TriangleState, marks: &[u32]) -> Result<Subdivided, Tri
 mod tests {
     use super::*;
     use crate::streams::uniform;
+
+    #[test]
+    fn the_budget_counts_each_mark_at_its_most_growth_and_never_goes_negative() {
+        // 1000 triangles of room: 166 marks of at most 6 new triangles each.
+        assert_eq!(within_budget(2000, 1000, 500), 166);
+        assert_eq!(within_budget(2000, 1000, 10), 10);
+        // A mesh already at or above the budget (a scan of 521 362 triangles against 200 000) splits none.
+        assert_eq!(within_budget(200_000, 200_000, 7), 0);
+        assert_eq!(within_budget(200_000, 521_362, 7), 0);
+    }
 
     /// Seeded standard normal numbers (Box–Muller on [`uniform`]), keyed by (stream, a, b).
     fn normal(stream: u64, a: u64, b: u64) -> f64 {

@@ -281,16 +281,27 @@ pub struct DetailRequest<'a> {
     pub settings: optim::triangle::detail::DetailSettings,
 }
 
+/// Per object of `ids`, whether its triangles may get sub-triangle detail: its per-object model is `diffuse`
+/// and the photos constrain it (`constrained`, absent = constrained, as the per-triangle stage reads it). An
+/// object the object stage left unconstrained (seen in fewer pixels than a fit needs) keeps its value, a prior
+/// or a start value, in the per-triangle stage, and the few pixels that see it are no texture either.
+fn detail_eligible(ids: &[i64], materials: &crate::materials::MaterialsFile) -> Vec<bool> {
+    ids.iter()
+        .map(|id| {
+            materials.objects.iter().any(|o| o.id == *id && o.model == "diffuse" && o.constrained.unwrap_or(true))
+        })
+        .collect()
+}
+
 /// The per-triangle texel grids of the triangle result `st` (`optim::triangle::detail`), for the objects
-/// whose per-object model is `diffuse`, and what the estimate did.
+/// [`detail_eligible`] admits, and what the estimate did.
 fn estimate_detail(
     ids: &[i64],
     st: &optim::triangle::TriangleState,
     req: &DetailRequest<'_>,
     reporter: &dyn Reporter,
 ) -> Result<(Vec<Option<optim::triangle::detail::TexelGrid>>, optim::triangle::detail::DetailReport), StageError> {
-    let eligible: Vec<bool> =
-        ids.iter().map(|id| req.materials.objects.iter().any(|o| o.id == *id && o.model == "diffuse")).collect();
+    let eligible = detail_eligible(ids, req.materials);
     let scene = st.scene().map_err(StageError::Triangle)?;
     let cameras = req.prepared.tracer_cameras();
     let progress = reporter.progress(StageId::Export, "detail", 1);
@@ -558,7 +569,7 @@ mod tests {
 
     #[test]
     fn the_summary_of_a_triangle_result_averages_each_object_by_area_and_keeps_its_decisions() {
-        use crate::materials::{MATERIALS_FORMAT, MaterialsFile, ObjectMaterial};
+        use crate::materials::{MATERIALS_FORMAT, MaterialsFile};
         use glam::Vec3;
         let m = |x: f32| tracer::Material {
             base_color: Vec3::new(x, 0.5, 1.0 - x),
@@ -579,20 +590,7 @@ mod tests {
             rounds_done: 1,
             log: Vec::new(),
         };
-        let object = |id: i64, model: &str| ObjectMaterial {
-            id,
-            label: format!("o{id}"),
-            triangles: 1,
-            base_color: [0.1; 3],
-            roughness: 0.3,
-            metallic: 0.0,
-            specular: 0.0,
-            emission: [0.0; 3],
-            model: model.into(),
-            why: Some(format!("why {id}")),
-            constrained: Some(true),
-            horizon: None,
-        };
+        let object = |id: i64, model: &str| object_material(id, model, Some(true));
         // The file lists the objects in another order than the scan, and one the scan does not have.
         let file = MaterialsFile {
             format: MATERIALS_FORMAT.into(),
@@ -614,6 +612,42 @@ mod tests {
         let h = o4.horizon.expect("split emitter keeps its halves");
         assert_eq!((h.up, h.sky, h.ground), ([0.0, 0.0, 1.0], [3.0, 2.0, 1.0], [0.5, 0.4, 0.3]));
         assert_eq!(out.objects[1], file.objects[1], "an object the scan does not list is kept as it was");
+    }
+
+    /// One object of a `materials.json` as the fit writes it (base colour 0.1, roughness 0.3, a `why`).
+    fn object_material(id: i64, model: &str, constrained: Option<bool>) -> crate::materials::ObjectMaterial {
+        crate::materials::ObjectMaterial {
+            id,
+            label: format!("o{id}"),
+            triangles: 1,
+            base_color: [0.1; 3],
+            roughness: 0.3,
+            metallic: 0.0,
+            specular: 0.0,
+            emission: [0.0; 3],
+            model: model.into(),
+            why: Some(format!("why {id}")),
+            constrained,
+            horizon: None,
+        }
+    }
+
+    #[test]
+    fn detail_goes_only_to_diffuse_objects_the_photos_constrain() {
+        use crate::materials::{MATERIALS_FORMAT, MaterialsFile};
+        let file = MaterialsFile {
+            format: MATERIALS_FORMAT.into(),
+            emission_profile: tracer::EmissionProfile::Uniform,
+            objects: vec![
+                object_material(1, "diffuse", Some(true)),
+                object_material(2, "diffuse", Some(false)),
+                object_material(3, "diffuse", None),
+                object_material(4, "specular", Some(true)),
+            ],
+        };
+        // Id 5 is not in the file: nothing says it is diffuse. A file written by hand (no `constrained`)
+        // counts as constrained, as in the per-triangle stage.
+        assert_eq!(detail_eligible(&[1, 2, 3, 4, 5], &file), [true, false, true, false, false]);
     }
 
     #[test]
