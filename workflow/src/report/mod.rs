@@ -84,6 +84,9 @@ pub fn samples_sentence(c: &SampleCounts) -> String {
 pub struct TriangleSection {
     /// Per object: (id, label, triangles in the scan's mesh, triangles after the stage).
     pub counts: Vec<(i64, String, usize, usize)>,
+    /// Triangles the split test found significant but the triangle budget left unsplit, over all rounds
+    /// (`optim::triangle::RoundRecord::over_budget`).
+    pub over_budget: usize,
     /// What the sub-triangle detail did (`None`: it did not run).
     pub detail: Option<optim::triangle::detail::DetailReport>,
     /// `export/albedo.png` (sRGB 8-bit PNG bytes), when export wrote one; shown inline.
@@ -204,6 +207,15 @@ pub fn html(data: &ReportData) -> String {
             );
         }
         s.push_str("</table>\n");
+        if t.over_budget > 0 {
+            // The counts above would otherwise read as "nothing needed splitting".
+            let _ = writeln!(
+                s,
+                "<p>The split test found {} triangles whose photos show more detail than one colour, which the \
+                 triangle budget (triangle.max_triangles, a bound on the mesh's size) left unsplit.</p>",
+                t.over_budget
+            );
+        }
         if let Some(d) = &t.detail {
             let _ = writeln!(
                 s,
@@ -288,6 +300,7 @@ mod tests {
             notes: vec![],
             triangle: Some(TriangleSection {
                 counts: vec![(1, "floor & co".into(), 2, 32)],
+                over_budget: 18,
                 detail: Some(optim::triangle::detail::DetailReport {
                     triangles: 7,
                     texels: 1234,
@@ -307,6 +320,7 @@ mod tests {
         // 3 view images and the atlas.
         assert_eq!(page.matches("data:image/png;base64,").count(), 4);
         assert!(page.contains("<h2>Per-triangle stage</h2>"));
+        assert!(page.contains("found 18 triangles"), "the triangles the budget left unsplit are reported");
         assert!(page.contains("<td class=\"l\">floor &amp; co</td><td>2</td><td>32</td>"));
         assert!(
             page.contains("Sub-triangle detail: 1234 texels on 7 triangles (0.800 texels per pixel"),

@@ -351,7 +351,8 @@ fn triangle_section(
         .map(|(i, o)| (o.id, o.label.clone().unwrap_or_default(), before[i], after[i]))
         .collect();
     let atlas_png = std::fs::read(run_dir.join("export").join("albedo.png")).ok();
-    Some(crate::report::TriangleSection { counts, detail, atlas_png })
+    let over_budget = st.log.iter().map(|r| r.over_budget).sum();
+    Some(crate::report::TriangleSection { counts, over_budget, detail, atlas_png })
 }
 
 /// The run's per-object result when the `triangle` stage wrote one: each object's base colour, roughness,
