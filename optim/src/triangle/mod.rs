@@ -518,11 +518,6 @@ fn collect_pixels(
     pix
 }
 
-/// How many marks a mesh of `n` triangles can still take within `triangle.max_triangles`.
-fn within_budget_of(cfg: &TriangleSettings, n: usize) -> usize {
-    split::within_budget(cfg.max_triangles as usize, n, usize::MAX)
-}
-
 /// Runs the remaining rounds of `state` (fit → split → … → fit). `on_round` receives the state after every
 /// round that ends with a split (a checkpoint); the returned state holds the final fit.
 pub fn run_rounds(
@@ -540,7 +535,7 @@ pub fn run_rounds(
         )));
     }
     let cfg = inputs.settings;
-    if cfg.rounds > 0 && within_budget_of(cfg, state.triangles.len()) == 0 {
+    if cfg.rounds > 0 && split::within_budget(cfg.max_triangles as usize, state.triangles.len(), 1) == 0 {
         // The budget bounds the mesh's size, not its growth: a scan already at it keeps its own triangles.
         progress.note(&format!(
             "[triangle] the mesh has {} triangles and triangle.max_triangles is {}: no room for a split, so \
