@@ -114,6 +114,13 @@ impl ObjectMaterial {
             specular: self.specular,
         }
     }
+
+    /// Whether the photos constrain the object's material: `constrained`, and an object that does not say
+    /// (a file written by hand, or by an earlier version) counts as constrained.
+    #[must_use]
+    pub fn is_constrained(&self) -> bool {
+        self.constrained.unwrap_or(true)
+    }
 }
 
 impl MaterialsFile {

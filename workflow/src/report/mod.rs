@@ -175,11 +175,7 @@ pub fn html(data: &ReportData) -> String {
             escape(&o.label),
             o.triangles,
             // Values no photo constrains are flagged, not presented as estimates.
-            if o.constrained == Some(false) {
-                format!("{} (unconstrained)", escape(&o.model))
-            } else {
-                escape(&o.model)
-            },
+            if !o.is_constrained() { format!("{} (unconstrained)", escape(&o.model)) } else { escape(&o.model) },
             swatch(o.base_color, 1.0),
             o.roughness,
             o.metallic,

@@ -282,14 +282,13 @@ pub struct DetailRequest<'a> {
 }
 
 /// Per object of `ids`, whether its triangles may get sub-triangle detail: its per-object model is `diffuse`
-/// and the photos constrain it (`constrained`, absent = constrained, as the per-triangle stage reads it). An
+/// and the photos constrain it ([`crate::materials::ObjectMaterial::is_constrained`], as the per-triangle stage
+/// reads it). An
 /// object the object stage left unconstrained (seen in fewer pixels than a fit needs) keeps its value, a prior
 /// or a start value, in the per-triangle stage, and the few pixels that see it are no texture either.
 fn detail_eligible(ids: &[i64], materials: &crate::materials::MaterialsFile) -> Vec<bool> {
     ids.iter()
-        .map(|id| {
-            materials.objects.iter().any(|o| o.id == *id && o.model == "diffuse" && o.constrained.unwrap_or(true))
-        })
+        .map(|id| materials.objects.iter().any(|o| o.id == *id && o.model == "diffuse" && o.is_constrained()))
         .collect()
 }
 

@@ -16,6 +16,7 @@ use crate::artefacts::ingest::Ingested;
 use crate::artefacts::object::{MATERIALS_FILE, read_result as read_object_result};
 use crate::artefacts::triangle::{CHECKPOINT_FORMAT, remove_result, write_result};
 use crate::config::TriangleConfig;
+use crate::materials::ObjectMaterial;
 use crate::stage_contract::{StageContext, StageError};
 use optim::triangle::{RoundInputs, TriangleError, TriangleSettings, TriangleState};
 
@@ -35,10 +36,10 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     let params = materials.params_for(&ids, &plan.output.join("object").join(MATERIALS_FILE))?;
     let specular: Vec<bool> =
         ids.iter().map(|id| materials.objects.iter().any(|o| o.id == *id && o.model.contains("specular"))).collect();
-    // An object `materials.json` does not mark (a file written by hand) counts as constrained.
+    // An object `materials.json` does not list counts as constrained, as one that does not say.
     let constrained: Vec<bool> = ids
         .iter()
-        .map(|id| materials.objects.iter().find(|o| o.id == *id).and_then(|o| o.constrained).unwrap_or(true))
+        .map(|id| materials.objects.iter().find(|o| o.id == *id).is_none_or(ObjectMaterial::is_constrained))
         .collect();
     let cameras = prepared.tracer_cameras();
     let settings = plan.tracer.settings();
