@@ -1,6 +1,6 @@
 """`python -m corpus` (run by `scripts/corpus`): build, score, generate and list the corpus scenes; re-render a
 `lab synth` scan with Mitsuba; upsample a scan's photos (its timing variant at a scanner's resolution);
-compare window-pane models on a daylit scan."""
+compare window-pane models on a daylit scan; measure the albedo error our forward model leaves at the truth."""
 from __future__ import annotations
 
 import argparse
@@ -49,6 +49,15 @@ def main(argv=None) -> int:
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--views", type=int, default=18)
     p.add_argument("--threads", type=int, default=2)
+    f = sub.add_parser("floor", help="per object, the photos against our render of the ground truth (the albedo "
+                       "error the forward model leaves)")
+    f.add_argument("scan_dir", type=Path)
+    f.add_argument("run_dir", type=Path, help="a run whose ingest finished (its window panes are used)")
+    f.add_argument("out_csv", type=Path)
+    f.add_argument("--pipeline", type=Path, help="pipeline binary (default: target/{release,debug}/pipeline)")
+    f.add_argument("--spp", type=int, default=64)
+    f.add_argument("--views", type=int, default=0, help="render this many training views (default: all)")
+    f.add_argument("--threads", type=int, default=2)
     sub.add_parser("list", help="the scene names")
     a = ap.parse_args(argv)
 
@@ -101,6 +110,22 @@ def main(argv=None) -> int:
         for r in rows:
             fmt = lambda v: " ".join(f"{x:.3f}" for x in v)  # noqa: E731
             print(f"| {r['object']} | {r['pixels']} | {fmt(r['split'])} | {fmt(r['uniform'])} |")
+        return 0
+    if a.cmd == "floor":
+        from . import floor
+        from .score import find_pipeline
+
+        pipeline = a.pipeline or find_pipeline()
+        if pipeline is None:
+            print("scripts/corpus floor: no pipeline binary found; give --pipeline", file=sys.stderr)
+            return 2
+        t = time.time()
+        records = floor.measure(a.scan_dir, a.run_dir, pipeline, a.spp, a.views, a.threads)
+        floor.write_csv(records, a.out_csv)
+        print("| subset | floor of albedo_l1 | objects |\n|---|---:|---:|")
+        for kind, value, n in floor.summary(records):
+            print(f"| {kind} | {value:.4f} | {n} |")
+        print(f"measured in {time.time() - t:.1f} s: {a.out_csv}")
         return 0
     if a.cmd == "score":
         from . import score

@@ -375,16 +375,21 @@ def object_errors(scan_dir: Path, run_dir: Path) -> list[dict]:
     return out
 
 
-def write_object_csv(records: list[dict], csv_path: Path) -> Path:
-    """Writes `object_errors`' records to `<stem>.objects.csv` beside `csv_path`; returns that path."""
-    path = Path(csv_path).with_suffix(".objects.csv")
+def write_records_csv(records: list[dict], fields, path: Path) -> Path:
+    """Writes per-object records as a CSV with the columns `fields` (floats to 6 significant digits)."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(OBJECT_FIELDS))
+        w = csv.DictWriter(f, fieldnames=list(fields))
         w.writeheader()
         for r in records:
             w.writerow({k: f"{v:.6g}" if isinstance(v, float) else v for k, v in r.items()})
     return path
+
+
+def write_object_csv(records: list[dict], csv_path: Path) -> Path:
+    """Writes `object_errors`' records to `<stem>.objects.csv` beside `csv_path`; returns that path."""
+    return write_records_csv(records, OBJECT_FIELDS, Path(csv_path).with_suffix(".objects.csv"))
 
 
 def write_reports(rows: list[dict], csv_path: Path) -> Path:
