@@ -109,6 +109,9 @@ struct BenchScaleArgs {
     /// stage by stage; by default they are deleted once measured.
     #[arg(long, value_name = "DIR")]
     keep: Option<PathBuf>,
+    /// Do not run: redraw `scale.svg` from the `scale.csv` already in `--out`.
+    #[arg(long)]
+    replot: bool,
     /// Workspace root holding `data-fixtures/`.
     #[arg(long)]
     workspace: Option<PathBuf>,
@@ -274,8 +277,13 @@ fn run_bench(what: BenchCommand) -> anyhow::Result<()> {
                 set: a.set,
                 keep: a.keep,
             };
-            scale::run(&opts, |line| eprintln!("bench scale: {line}"))?;
-            eprintln!("bench: wrote {}/scale.{{csv,svg,md}}", a.out.display());
+            if a.replot {
+                scale::replot(&opts.out)?;
+                eprintln!("bench: wrote {}/scale.svg", a.out.display());
+            } else {
+                scale::run(&opts, |line| eprintln!("bench scale: {line}"))?;
+                eprintln!("bench: wrote {}/scale.{{csv,svg,md}}", a.out.display());
+            }
         }
         BenchCommand::Realistic(a) => {
             let workspace = ws(a.workspace);

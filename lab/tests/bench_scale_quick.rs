@@ -2,7 +2,7 @@
 //! every column and one row per stage and point, and the held-out budget bounds the held-out pixels whatever
 //! the photo count: with a budget of 8 pixels per object, both points hold at most 8 per object (and per
 //! "no object") although their held-out candidates (10 % of all valid pixels) outnumber that at the larger
-//! point.
+//! point. The SVG is drawn from the CSV, and `--replot` redraws the same document from it alone.
 
 use std::process::Command;
 
@@ -52,4 +52,15 @@ fn quick_scale_sweep_writes_every_column_and_the_budget_bounds_the_held_out_pixe
     for f in ["scale.svg", "scale.md"] {
         assert!(out.path().join(f).is_file(), "{f} missing");
     }
+    // The plot is drawn from the CSV: redrawn from it alone, it is the same document.
+    let svg = std::fs::read_to_string(out.path().join("scale.svg")).unwrap();
+    assert_eq!(svg.matches("<circle").count(), 4, "two points, each in a time and a memory panel");
+    std::fs::remove_file(out.path().join("scale.svg")).unwrap();
+    let status = Command::new(env!("CARGO_BIN_EXE_lab"))
+        .args(["bench", "scale", "--replot", "--out"])
+        .arg(out.path())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    assert_eq!(std::fs::read_to_string(out.path().join("scale.svg")).unwrap(), svg);
 }

@@ -171,8 +171,11 @@ fn panel(s: &mut String, p: &Panel, ox: f64, oy: f64) {
         }
         if se.markers {
             for (x, y) in &pts {
-                let _ =
-                    writeln!(s, r#"<circle cx="{x:.1}" cy="{y:.1}" r="3" fill="{}" fill-opacity="0.8"/>"#, se.color);
+                let _ = writeln!(
+                    s,
+                    r#"<circle cx="{x:.1}" cy="{y:.1}" r="{MARKER_R}" fill="{}" fill-opacity="0.8"/>"#,
+                    se.color
+                );
             }
         }
         drawn.extend(pts);
@@ -187,8 +190,10 @@ fn panel(s: &mut String, p: &Panel, ox: f64, oy: f64) {
         (x0 + pw - lw - 4.0, y0 + ph - lh - 4.0),
         (x0 + 4.0, y0 + ph - lh - 4.0),
     ];
+    // A point counts where its marker reaches the box, not only where its centre lies in it.
     let covered = |&(bx, by): &(f64, f64)| {
-        drawn.iter().filter(|&&(x, y)| x >= bx && x <= bx + lw && y >= by && y <= by + lh).count()
+        let m = MARKER_R + 1.0;
+        drawn.iter().filter(|&&(x, y)| x >= bx - m && x <= bx + lw + m && y >= by - m && y <= by + lh + m).count()
     };
     let (bx, by) = corners.iter().copied().min_by_key(|c| covered(c)).unwrap_or(corners[0]);
     if !p.series.is_empty() {
@@ -204,6 +209,9 @@ fn panel(s: &mut String, p: &Panel, ox: f64, oy: f64) {
         let _ = writeln!(s, r#"<text x="{:.1}" y="{ly:.1}">{}</text>"#, lx + 14.0, escape(&se.name));
     }
 }
+
+/// Radius of a point's marker, px.
+const MARKER_R: f64 = 3.0;
 
 /// Points sampled along each segment of a series' line when choosing the legend's corner: a line that crosses
 /// a corner without a marker in it still counts.
@@ -367,36 +375,48 @@ mod tests {
         assert!(s.contains("a&lt;b"));
     }
 
+    /// A one-panel document of `series` on linear axes (the panel spans x 62–446, y 58–306), and its legend's
+    /// box: the translucent white rectangle.
+    fn with_legend(series: Vec<Series>) -> (String, String) {
+        let p =
+            Panel { title: "t".into(), x_label: "x".into(), y_label: "y".into(), log_x: false, log_y: false, series };
+        let s = render("title", &[p], 1);
+        let line = s.lines().find(|l| l.contains(r#"fill="white" fill-opacity"#)).expect("a legend box").to_owned();
+        (s, line)
+    }
+
+    fn series(name: &str, colour: usize, points: Vec<(f64, f64)>, line: bool, markers: bool) -> Series {
+        Series { name: name.into(), color: PALETTE[colour].into(), points, line, markers }
+    }
+
     #[test]
     fn the_legend_goes_to_the_corner_with_the_least_data() {
         // A line from the bottom left to the top right, and a cloud of points in the top left: of the four
         // inner corners only the bottom right is free.
         let cloud: Vec<(f64, f64)> = (0..10).map(|i| (1.0 + 0.1 * f64::from(i), 9.0 + 0.1 * f64::from(i))).collect();
-        let p = Panel {
-            title: "t".into(),
-            x_label: "x".into(),
-            y_label: "y".into(),
-            log_x: false,
-            log_y: false,
-            series: vec![
-                Series {
-                    name: "diagonal".into(),
-                    color: PALETTE[0].into(),
-                    points: vec![(0.0, 0.0), (10.0, 10.0)],
-                    line: true,
-                    markers: false,
-                },
-                Series { name: "cloud".into(), color: PALETTE[1].into(), points: cloud, line: false, markers: true },
-            ],
-        };
-        let s = render("title", &[p], 1);
-        // The legend's box is the translucent white rectangle; its corner is right of and below the panel's
-        // centre (the panel spans x 62–446, y 58–334 in the document).
-        let line = s.lines().find(|l| l.contains(r#"fill="white" fill-opacity"#)).expect("a legend box");
+        let (_, line) = with_legend(vec![
+            series("diagonal", 0, vec![(0.0, 0.0), (10.0, 10.0)], true, false),
+            series("cloud", 1, cloud, false, true),
+        ]);
+        // The box's corner is right of and below the panel's centre.
         let attr = |name: &str| -> f64 {
             let start = line.find(&format!(r#" {name}=""#)).unwrap() + name.len() + 3;
             line[start..].split('"').next().unwrap().parse().unwrap()
         };
-        assert!(attr("x") > 254.0 && attr("y") > 196.0, "{line}");
+        assert!(attr("x") > 254.0 && attr("y") > 182.0, "{line}");
+    }
+
+    #[test]
+    fn the_legend_leaves_a_marker_beside_its_corner_uncovered() {
+        // Each linear axis is padded by 5 % of its range. The top point's centre lands at (369.0, 69.3), where
+        // its line ends, 1.4 px left of the top-right corner's box (from x 370.4 for an 8-character name), which
+        // its marker of radius 3 overlaps; the two bottom corners hold the other points. Counting centres only,
+        // the top right would tie with the free top left and win.
+        let (s, line) = with_legend(vec![
+            series("peak RSS", 0, vec![(0.0, 0.0), (0.8294, 1.0)], true, true),
+            series("b", 1, vec![(1.0, 0.0)], false, true),
+        ]);
+        assert!(s.contains(r#"<circle cx="369.0" cy="69.3""#), "{s}");
+        assert!(line.contains(r#"x="66.0" y="62.0""#), "{line}");
     }
 }

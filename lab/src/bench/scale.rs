@@ -372,9 +372,22 @@ pub fn run(opts: &ScaleOptions, mut on_point: impl FnMut(&str)) -> Result<(), Be
         }
     }
     let _ = std::fs::remove_dir_all(&work);
-    super::write_file(&opts.out.join("scale.svg"), plot(&rows).as_bytes())?;
+    // The plot is drawn from the CSV as written, so that `replot` redraws it exactly.
+    let path = opts.out.join("scale.csv");
+    let points = plot_points(&csv(&rows)).map_err(|message| BenchError::Io { path, message })?;
+    super::write_file(&opts.out.join("scale.svg"), plot(&points).as_bytes())?;
     super::write_file(&opts.out.join("scale.md"), summary(&rows).as_bytes())?;
     Ok(())
+}
+
+/// Redraws `out/scale.svg` from `out/scale.csv` without running anything (the markdown, which names the
+/// machine it ran on, stays as the run wrote it).
+pub fn replot(out: &Path) -> Result<(), BenchError> {
+    let path = out.join("scale.csv");
+    let bad = |message: String| BenchError::Io { path: path.clone(), message };
+    let text = std::fs::read_to_string(&path).map_err(|e| bad(e.to_string()))?;
+    let points = plot_points(&text).map_err(bad)?;
+    super::write_file(&out.join("scale.svg"), plot(&points).as_bytes())
 }
 
 fn tempfile_dir(out: &Path) -> Result<PathBuf, BenchError> {
@@ -424,7 +437,7 @@ fn csv(rows: &[Measured]) -> String {
     s
 }
 
-/// The size an axis varies, as a number.
+/// The size an axis varies, as a number (in the CSV: the `triangles`, `objects`, `photos` or `pixels` column).
 fn size(m: &Measured) -> f64 {
     match m.point.axis {
         "triangles" => m.triangles as f64,
@@ -466,12 +479,52 @@ fn axis_label(axis: &str) -> &'static str {
     }
 }
 
-fn plot(rows: &[Measured]) -> String {
+/// One point of the plot: the axis it varies, its size on that axis ([`size`]), the whole pipeline's wall time
+/// and its peak RSS by `/usr/bin/time -v`.
+struct PlotPoint {
+    axis: String,
+    size: f64,
+    wall_s: f64,
+    rss_mb: f64,
+}
+
+/// The plot's points from the `total` rows of a [`CSV_COLUMNS`] table, in the table's order.
+fn plot_points(text: &str) -> Result<Vec<PlotPoint>, String> {
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let col = |name: &str| header.iter().position(|c| *c == name).ok_or_else(|| format!("no column {name}"));
+    let (axis, stage, wall, rss) = (col("axis")?, col("stage")?, col("wall_s")?, col("time_v_peak_rss_mb")?);
+    let mut out = Vec::new();
+    for (i, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != header.len() {
+            return Err(format!("line {}: {} fields, the header has {}", i + 2, f.len(), header.len()));
+        }
+        if f[stage] != "total" {
+            continue;
+        }
+        let num = |c: usize| f[c].parse::<f64>().map_err(|e| format!("line {}: {}: {e}", i + 2, header[c]));
+        let size_col = match f[axis] {
+            "triangles" | "objects" | "photos" => col(f[axis])?,
+            _ => col("pixels")?,
+        };
+        out.push(PlotPoint { axis: f[axis].to_owned(), size: num(size_col)?, wall_s: num(wall)?, rss_mb: num(rss)? });
+    }
+    Ok(out)
+}
+
+fn plot(points: &[PlotPoint]) -> String {
+    let mut axes: Vec<&str> = Vec::new();
+    for p in points {
+        if !axes.contains(&p.axis.as_str()) {
+            axes.push(&p.axis);
+        }
+    }
     let mut panels = Vec::new();
-    for axis in axes_of(rows) {
-        let r: Vec<&Measured> = rows.iter().filter(|m| m.point.axis == axis).collect();
-        let wall: Vec<(f64, f64)> = r.iter().map(|m| (size(m), m.wall_s)).collect();
-        let rss: Vec<(f64, f64)> = r.iter().map(|m| (size(m), m.time_v_peak_rss_mb)).collect();
+    for axis in axes {
+        let r: Vec<&PlotPoint> = points.iter().filter(|p| p.axis == axis).collect();
+        let wall: Vec<(f64, f64)> = r.iter().map(|p| (p.size, p.wall_s)).collect();
+        let rss: Vec<(f64, f64)> = r.iter().map(|p| (p.size, p.rss_mb)).collect();
         panels.push(Panel {
             title: format!("wall time [s] against {}", axis_label(axis)),
             x_label: axis_label(axis).to_owned(),
