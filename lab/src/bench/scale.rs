@@ -353,7 +353,7 @@ pub fn run(opts: &ScaleOptions, mut on_point: impl FnMut(&str)) -> Result<(), Be
             .collect()
     };
     let work = tempfile_dir(&opts.out)?;
-    let mut rows = Vec::new();
+    let (mut rows, mut table) = (Vec::new(), String::new());
     for axis in axes {
         for value in axis_values(axis, opts.quick) {
             let m = measure(point(&base, axis, value, opts.quick), opts, &work)?;
@@ -368,13 +368,14 @@ pub fn run(opts: &ScaleOptions, mut on_point: impl FnMut(&str)) -> Result<(), Be
                 m.time_v_peak_rss_mb
             ));
             rows.push(m);
-            super::write_file(&opts.out.join("scale.csv"), csv(&rows).as_bytes())?;
+            table = csv(&rows);
+            super::write_file(&opts.out.join("scale.csv"), table.as_bytes())?;
         }
     }
     let _ = std::fs::remove_dir_all(&work);
     // The plot is drawn from the CSV as written, so that `replot` redraws it exactly.
     let path = opts.out.join("scale.csv");
-    let points = plot_points(&csv(&rows)).map_err(|message| BenchError::Io { path, message })?;
+    let points = plot_points(&table).map_err(|message| BenchError::Io { path, message })?;
     super::write_file(&opts.out.join("scale.svg"), plot(&points).as_bytes())?;
     super::write_file(&opts.out.join("scale.md"), summary(&rows).as_bytes())?;
     Ok(())
@@ -460,11 +461,12 @@ fn exponent(pts: &[(f64, f64)]) -> f64 {
     sxy / sxx
 }
 
-fn axes_of(rows: &[Measured]) -> Vec<&'static str> {
-    let mut a: Vec<&'static str> = Vec::new();
-    for m in rows {
-        if !a.contains(&m.point.axis) {
-            a.push(m.point.axis);
+/// The distinct axes of `axes`, in order of first appearance.
+fn axes_of<'a>(axes: impl IntoIterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut a: Vec<&str> = Vec::new();
+    for axis in axes {
+        if !a.contains(&axis) {
+            a.push(axis);
         }
     }
     a
@@ -514,14 +516,8 @@ fn plot_points(text: &str) -> Result<Vec<PlotPoint>, String> {
 }
 
 fn plot(points: &[PlotPoint]) -> String {
-    let mut axes: Vec<&str> = Vec::new();
-    for p in points {
-        if !axes.contains(&p.axis.as_str()) {
-            axes.push(&p.axis);
-        }
-    }
     let mut panels = Vec::new();
-    for axis in axes {
+    for axis in axes_of(points.iter().map(|p| p.axis.as_str())) {
         let r: Vec<&PlotPoint> = points.iter().filter(|p| p.axis == axis).collect();
         let wall: Vec<(f64, f64)> = r.iter().map(|p| (p.size, p.wall_s)).collect();
         let rss: Vec<(f64, f64)> = r.iter().map(|p| (p.size, p.rss_mb)).collect();
@@ -571,7 +567,7 @@ fn summary(rows: &[Measured]) -> String {
     );
     let _ = writeln!(s, "| axis | sizes | wall time exponent | peak RSS exponent | held-out pixels |");
     let _ = writeln!(s, "|---|---|---|---|---|");
-    for axis in axes_of(rows) {
+    for axis in axes_of(rows.iter().map(|m| m.point.axis)) {
         let r: Vec<&Measured> = rows.iter().filter(|m| m.point.axis == axis).collect();
         let sizes: Vec<String> = r.iter().map(|m| format!("{}", size(m))).collect();
         let e_wall = exponent(&r.iter().map(|m| (size(m), m.wall_s)).collect::<Vec<_>>());

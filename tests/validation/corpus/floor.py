@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-from . import cameras as cams
 from . import layout
 
 FIELDS = ("id", "label", "kind", "pixels", "true_r", "true_g", "true_b", "ratio_r", "ratio_g", "ratio_b", "floor_l1")
@@ -93,20 +92,10 @@ def measure(scan_dir: Path, run_dir: Path, pipeline: Path, spp: int = 64, views:
 
     scan_dir, run_dir = Path(scan_dir), Path(run_dir)
     gt = json.loads((scan_dir / "ground_truth.json").read_text())
-    settings = gt["settings"]
     truth = {o["id"]: o for o in gt["objects"]}
     mi = convert.init_mitsuba(threads)
-    rot = convert.UP_ROTATIONS[gt["up_axis_of_source"]]
-    # The scan's own copy of a generated scene's source, else the XML it was built from.
-    xml = scan_dir / "source" / "scene.xml"
-    full, _ = scan.load_scenes(xml if xml.is_file() else Path(gt["source_xml"]), mi)
-    objects, _ = convert.scene_objects(full, gt["up_axis_of_source"], 0, mi)
     conf = next((scan_dir / "undistorted_camera_parameters").glob("*.conf"))
-    train = cams.read_conf(conf)
-    if views > 0:
-        train = train[:: max(1, len(train) // views)][:views]
-    for c in train:
-        c.width, c.height = settings["width"], settings["height"]
+    train, labels, photos = scan.labelled_views(scan_dir, views, mi)
     with tempfile.TemporaryDirectory(prefix="corpus_floor_") as tmp:
         tmp = Path(tmp)
         materials = tmp / "truth.json"
@@ -116,7 +105,8 @@ def measure(scan_dir: Path, run_dir: Path, pipeline: Path, spp: int = 64, views:
         subset_conf(conf, {c.name for c in train}, sub)
         try:
             cmd = [str(pipeline), "render", str(run_dir), "--cameras", str(sub), "--output", str(tmp / "r"),
-                   "--spp", str(spp), "--materials", str(materials), "--max-depth", str(settings["max_depth"])]
+                   "--spp", str(spp), "--materials", str(materials),
+                   "--max-depth", str(gt["settings"]["max_depth"])]
             res = subprocess.run(cmd, capture_output=True, text=True)
             if res.returncode != 0:
                 raise RuntimeError(f"{pipeline} render failed (exit {res.returncode}): {res.stderr[-500:]}")
@@ -124,8 +114,6 @@ def measure(scan_dir: Path, run_dir: Path, pipeline: Path, spp: int = 64, views:
             sub.unlink(missing_ok=True)
         log(f"{len(train)} views rendered at {spp} paths per pixel")
         renders = [layout.read_exr(tmp / "r" / f"{c.name}.exr") for c in train]
-    labels = [scan.label_view(full, c, rot, objects, mi)[0].reshape(c.height, c.width) for c in train]
-    photos = [layout.read_exr(scan_dir / "undistorted_color_images" / f"{c.name}.exr") for c in train]
     return object_ratios(truth, photos, renders, labels)
 
 

@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from . import cameras as cams
 from . import convert, layout, scan
 
 
@@ -50,14 +49,7 @@ def compare(scan_dir: Path, spp: int = 64, views: int = 18, threads: int = 2, lo
     mi = convert.init_mitsuba(threads)
     sky = layout.read_exr(src / "textures" / "sky.exr")
     rot = convert.UP_ROTATIONS["z"]
-    full, _ = scan.load_scenes(src / "scene.xml", mi)
-    objects, _ = convert.scene_objects(full, "z", 0, mi)
-    train = cams.read_conf(next((scan_dir / "undistorted_camera_parameters").glob("*.conf")))
-    train = train[:: max(1, len(train) // views)][:views]
-    for c in train:
-        c.width, c.height = settings["width"], settings["height"]
-    labels = [scan.label_view(full, c, rot, objects, mi)[0].reshape(c.height, c.width) for c in train]
-    photos = [layout.read_exr(scan_dir / "undistorted_color_images" / f"{c.name}.exr") for c in train]
+    train, labels, photos = scan.labelled_views(scan_dir, views, mi)
     renders = {}
     with tempfile.TemporaryDirectory() as tmp:
         for name, img in sky_models(sky).items():

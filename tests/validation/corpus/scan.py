@@ -97,6 +97,27 @@ def label_view(scene, cam, rot, objects, mi):
     return convert.label_rays(scene, o @ rot, d @ rot, objects, -2, mi)
 
 
+def labelled_views(scan_dir: Path, views: int, mi):
+    """A built scan's training cameras (every one when `views` ≤ 0, else `views` of them spread over the list),
+    each with its view's object labels at the pixel centres (as the scan's `pixels` counts them, from the scan's
+    own copy of the source scene when it has one) and its photo: (cameras, labels, photos)."""
+    scan_dir = Path(scan_dir)
+    gt = json.loads((scan_dir / "ground_truth.json").read_text())
+    xml = scan_dir / "source" / "scene.xml"
+    full, _ = load_scenes(xml if xml.is_file() else Path(gt["source_xml"]), mi)
+    up = gt["up_axis_of_source"]
+    objects, _ = convert.scene_objects(full, up, 0, mi)
+    train = cams.read_conf(next((scan_dir / "undistorted_camera_parameters").glob("*.conf")))
+    if views > 0:
+        train = train[:: max(1, len(train) // views)][:views]
+    for c in train:
+        c.width, c.height = gt["settings"]["width"], gt["settings"]["height"]
+    rot = convert.UP_ROTATIONS[up]
+    labels = [label_view(full, c, rot, objects, mi)[0].reshape(c.height, c.width) for c in train]
+    photos = [layout.read_exr(scan_dir / "undistorted_color_images" / f"{c.name}.exr") for c in train]
+    return train, labels, photos
+
+
 def measure_portal(render_scene, obj, rot, max_depth: int, seed: int, mi) -> list[float]:
     """Cosine-weighted mean radiance entering through a portal's front side (module docs)."""
     import drjit as dr
