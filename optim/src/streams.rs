@@ -135,6 +135,9 @@ pub mod key {
     /// `SELECT_LAMBERT + k`, and (at `SELECT_LAMBERT_TEST`) the renders of that test (`crate::fit::family`).
     pub const SELECT_LAMBERT: u64 = SELECT + (15 << 20);
     pub const SELECT_LAMBERT_TEST: u64 = SELECT + (16 << 20);
+    /// Model selection: the sky-gradient test's renders of the model with every kept split's sky graded and
+    /// with one made flat again (common random numbers; `crate::fit::horizon`).
+    pub const SELECT_SKY_TEST: u64 = SELECT + (17 << 20);
     /// Model selection: added to an averaged re-fit step's key for its step check (the steps' keys lie
     /// below it, the next field 2^20 above).
     pub const SELECT_STEP_CHECK: u64 = 1 << 19;

@@ -180,7 +180,7 @@ impl<'a> Renderer<'a> {
         for &entry in slots {
             let slot = self.params.slot_of_entry(entry, n_slots).ok_or_else(|| TracerError::BadSetting {
                 what: "emission column",
-                requirement: "an emitter slot of the scene or the ground entry of a split slot",
+                requirement: "an emitter slot of the scene or the ground or zenith entry of a split slot",
                 value: format!("entry {entry} ({n_slots} slots)"),
             })?;
             of_slot.push(slot);

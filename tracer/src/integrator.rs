@@ -45,6 +45,16 @@ pub(crate) const DIM_JITTER: u32 = 0;
 const DIM_FIRST_VERTEX: u32 = 2;
 /// Per vertex: 0 light slot, 1 light triangle, 2–3 light point, 4 lobe, 5–6 direction, 7 roulette.
 const DIMS_PER_VERTEX: u32 = 8;
+/// The choice between the horizon and zenith entries of a sky with a gradient (`Params::emission_entry`), two
+/// per vertex (the emission its ray hits, then its next-event connection), numbered from here: far past any
+/// path's per-vertex dimensions, so that scenes without such a sky draw exactly the numbers they drew before.
+const DIM_SKY_PICK: u32 = 1 << 30;
+
+/// The random number of a vertex's sky pick (`nee`: its next-event connection; else the emission it hits).
+#[inline]
+fn sky_pick(rng: &PathSampler, depth: u32, nee: bool) -> f32 {
+    rng.get(DIM_SKY_PICK + 2 * depth + u32::from(nee))
+}
 
 /// Everything a path needs to read, shared by all paths of one batch.
 #[derive(Debug, Clone, Copy)]
@@ -320,7 +330,7 @@ fn trace_mode<const GRAD: bool>(
         if factor > 0.0 {
             let mis = hit_mis(lights, emitter, prev_bsdf_pdf, t, cos_o);
             v.le_factor = factor * mis;
-            v.emitter = params.emission_entry(emitter, wo);
+            v.emitter = params.emission_entry(emitter, wo, sky_pick(rng, depth, false));
             v.le = params.emission[v.emitter as usize] * v.le_factor;
             l += beta * v.le;
         }
@@ -339,9 +349,10 @@ fn trace_mode<const GRAD: bool>(
         let bsdf = material.at(wo_l);
 
         // Next-event estimation, up to its shadow ray (traced below).
+        let u_sky = sky_pick(rng, depth, true);
         let shadow = light.and_then(|ls| {
             connect::<GRAD>(scene, profile, &bsdf, &frame, sp.p, ng, ls, |slot, wo| {
-                let entry = params.emission_entry(slot, wo);
+                let entry = params.emission_entry(slot, wo, u_sky);
                 (entry, params.emission[entry as usize])
             })
         });
@@ -443,7 +454,7 @@ pub(crate) fn trace_columns(
         let cos_o = sp.ng.dot(wo);
         let factor = profile.factor(cos_o);
         if factor > 0.0 {
-            let hit_entry = params.emission_entry(emitter, wo);
+            let hit_entry = params.emission_entry(emitter, wo, sky_pick(rng, depth, false));
             for (i, (sampler, &entry)) in cols.samplers.iter().zip(&cols.entries).enumerate() {
                 let mis = hit_mis(sampler, emitter, prev_bsdf_pdf, t, cos_o);
                 let e = if entry == hit_entry { Vec3::ONE } else { Vec3::ZERO };
@@ -481,10 +492,11 @@ pub(crate) fn trace_columns(
             }
             pick
         }));
+        let u_sky = sky_pick(rng, depth, true);
         for ((shadow, pick), &entry) in shadows.iter_mut().zip(picks.iter()).zip(&cols.entries) {
             *shadow = pick.and_then(|pick| {
                 connect::<false>(scene, profile, &bsdf, &frame, sp.p, ng, pick.point(scene, u_point), |slot, wo| {
-                    let e = params.emission_entry(slot, wo);
+                    let e = params.emission_entry(slot, wo, u_sky);
                     (e, if e == entry { Vec3::ONE } else { Vec3::ZERO })
                 })
             });

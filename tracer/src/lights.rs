@@ -40,9 +40,14 @@ impl LightSampler {
         let mut weights = Vec::new();
         for e in 0..n as u32 {
             // A slot split at the horizon: the mean of its halves (each sends its radiance into one of the two
-            // halves of a vertical emitter's directions, so the mean is its power up to the constant above).
+            // halves of a vertical emitter's directions, so the mean is its power up to the constant above),
+            // its sky half the mean of its horizon and zenith when it has a gradient (an estimate of its flux
+            // that only steers sampling).
             let em = match params.horizon.ground_of(e) {
-                Some(g) => (params.emission[e as usize].as_dvec3() + params.emission[g as usize].as_dvec3()) / 2.0,
+                Some(g) => {
+                    let sky = params.flat_sky(e, 0.5);
+                    (sky + params.emission[g as usize].as_dvec3()) / 2.0
+                }
                 None => params.emission[e as usize].as_dvec3(),
             };
             // Negative or NaN emission (possible transiently inside an optimiser step) is not sampled.

@@ -7,7 +7,8 @@ use glam::{DVec3, Vec3};
 
 /// Parameter tables, indexed by `SceneInput::material_of_tri` and `SceneInput::emitter_of_tri`.
 /// `emission[i]` is the RGB radiance scale `e` of emitter slot i (see [`EmissionProfile`]); 0 = not a light.
-/// Entries past the scene's emitter slots are the ground halves of the slots that [`Horizon`] splits.
+/// Entries past the scene's emitter slots are the ground halves of the slots that [`Horizon`] splits, then the
+/// zenith radiances of the split slots whose sky half has a gradient.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Params {
     pub materials: Vec<Material>,
@@ -21,6 +22,16 @@ pub struct Params {
 /// A split slot emits `emission[slot]` in the directions ω that point down or level (ω·up ≤ 0, the sky's
 /// half) and `emission[ground[slot]]` in those that point up; each half is one emission entry, so radiance
 /// stays linear in the emission table and every derivative and basis image is one entry's.
+///
+/// A split slot may also have a **zenith** entry: its sky half then varies with the elevation of the sky it
+/// carries, linearly in the sine of that elevation, s = −ω·up ∈ [0, 1]: L = (1 − s)·`emission[slot]` (the sky
+/// at the horizon) + s·`emission[zenith[slot]]` (the sky at the zenith). The CIE standard overcast sky has
+/// exactly this form (Moon and Spencer 1942: L ∝ 1 + 2 sin e), and a clear sky's brighter, whiter horizon is
+/// its first-order term: the photos see a window's sky within 20° of the horizon, while most of the light it
+/// sends onto the floor comes from higher up. A path takes the zenith entry with probability s and the
+/// horizon entry otherwise ([`Params::emission_entry`]), so each path still reads one entry, its expected
+/// radiance is the blend, and every derivative and basis image stays one entry's (unbiased, and linear in
+/// the table for fixed random numbers).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Horizon {
@@ -29,6 +40,10 @@ pub struct Horizon {
     /// `ground[slot]`: the emission entry of the slot's upward half; None, or a slot past the vector's end,
     /// emits one radiance in every direction.
     pub ground: Vec<Option<u32>>,
+    /// `zenith[slot]`: the emission entry of a split slot's sky at the zenith; None, or a slot past the
+    /// vector's end, has one radiance over its sky half. Absent in tables written before sky gradients.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub zenith: Vec<Option<u32>>,
 }
 
 impl Horizon {
@@ -37,6 +52,19 @@ impl Horizon {
     #[must_use]
     pub fn ground_of(&self, slot: u32) -> Option<u32> {
         self.ground.get(slot as usize).copied().flatten()
+    }
+
+    /// The zenith entry of `slot`, if its sky half has a gradient.
+    #[inline]
+    #[must_use]
+    pub fn zenith_of(&self, slot: u32) -> Option<u32> {
+        self.zenith.get(slot as usize).copied().flatten()
+    }
+
+    /// How many emission entries the split slots add after the scene's slots (ground halves and zeniths).
+    #[must_use]
+    pub fn extra_entries(&self) -> usize {
+        self.ground.iter().flatten().count() + self.zenith.iter().flatten().count()
     }
 }
 
@@ -69,7 +97,20 @@ impl Params {
                 value: format!("{:?}", self.horizon.up),
             });
         }
+        let zenith: Vec<(usize, u32)> =
+            self.horizon.zenith.iter().enumerate().filter_map(|(s, z)| z.map(|z| (s, z))).collect();
         let mut used = vec![false; self.emission.len()];
+        for &(slot, z) in &zenith {
+            // A zenith entry belongs to a split slot's sky half, and is its own parameter like a ground entry.
+            let ok = self.horizon.ground_of(slot as u32).is_some() && (z as usize) < self.emission.len();
+            if !ok || (z as usize) < slots || std::mem::replace(&mut used[z as usize], true) {
+                return Err(TracerError::BadSetting {
+                    what: "Params::horizon.zenith",
+                    requirement: "for a split slot, an emission entry past the slots owned by no other slot",
+                    value: format!("slot {slot} → entry {z} (slots {slots}, entries {})", self.emission.len()),
+                });
+            }
+        }
         for (slot, g) in split {
             // A ground entry is its own parameter: past the slots, within the table, owned by one slot.
             let ok = slot < slots && (g as usize) >= slots && (g as usize) < self.emission.len();
@@ -85,13 +126,36 @@ impl Params {
     }
 
     /// The emission entry that emitter slot `slot` uses for radiance leaving it in direction `wo` (unit, away
-    /// from the surface): its ground entry when the slot is split and `wo` points up, else the slot's own.
+    /// from the surface), with `u` uniform in [0, 1): its ground entry when the slot is split and `wo` points
+    /// up; its zenith entry with probability s = −wo·up when its sky half has a gradient and `wo` points down
+    /// ([`Horizon`]); else the slot's own.
     #[inline]
     #[must_use]
-    pub fn emission_entry(&self, slot: u32, wo: Vec3) -> u32 {
-        match self.horizon.ground_of(slot) {
-            Some(g) if wo.dot(self.horizon.up) > 0.0 => g,
+    pub fn emission_entry(&self, slot: u32, wo: Vec3, u: f32) -> u32 {
+        let Some(g) = self.horizon.ground_of(slot) else { return slot };
+        let up = wo.dot(self.horizon.up);
+        if up > 0.0 {
+            return g;
+        }
+        match self.horizon.zenith_of(slot) {
+            Some(z) if u < -up => z,
             _ => slot,
+        }
+    }
+
+    /// Gives the sky halves of split slots a gradient: each `(slot, zenith)` of `zeniths` appends `zenith` as
+    /// a new emission entry, the slot's sky at the zenith (its own entry becomes its sky at the horizon).
+    /// Expects the slots split ([`Params::split_at_horizon`]) and no zenith yet.
+    pub fn add_zeniths(&mut self, zeniths: impl IntoIterator<Item = (u32, Vec3)>) {
+        let mut zenith = vec![None; self.horizon.ground.len()];
+        for (slot, z) in zeniths {
+            if let Some(e) = zenith.get_mut(slot as usize) {
+                *e = Some(self.emission.len() as u32);
+                self.emission.push(z);
+            }
+        }
+        if zenith.iter().any(Option::is_some) {
+            self.horizon.zenith = zenith;
         }
     }
 
@@ -105,36 +169,53 @@ impl Params {
             self.emission.push(half);
         }
         if ground.iter().any(Option::is_some) {
-            self.horizon = Horizon { up, ground };
+            self.horizon = Horizon { up, ground, zenith: Vec::new() };
         }
     }
 
-    /// Per emitter slot (one per entry of `upward`, the slots' [`crate::scene::upward_shares`]): the radiance of a
-    /// uniform emitter that sends the same flux — [`joined_halves`] for a split slot, its emission for the
+    /// Per emitter slot (one per entry of `upward`, the slots' [`crate::scene::upward_shares`], and of `sky`,
+    /// their [`crate::scene::sky_elevations`]): the radiance of a uniform emitter that sends the same flux —
+    /// [`joined_halves`] of its [`Params::flat_sky`] and ground half for a split slot, its emission for the
     /// others (exact for the uniform profile).
     #[must_use]
-    pub fn uniform_emission(&self, upward: &[f64]) -> Vec<Vec3> {
+    pub fn uniform_emission(&self, upward: &[f64], sky: &[f64]) -> Vec<Vec3> {
         upward
             .iter()
             .enumerate()
             .map(|(slot, &u)| {
                 let own = self.emission.get(slot).copied().unwrap_or(Vec3::ZERO);
                 match self.horizon.ground_of(slot as u32).and_then(|g| self.emission.get(g as usize)) {
-                    Some(&ground) => joined_halves(own.as_dvec3(), ground.as_dvec3(), u).as_vec3(),
+                    Some(&ground) => {
+                        let flat = self.flat_sky(slot as u32, sky.get(slot).copied().unwrap_or(0.0));
+                        joined_halves(flat, ground.as_dvec3(), u).as_vec3()
+                    }
                     None => own,
                 }
             })
             .collect()
     }
 
+    /// The one sky radiance of the same flux as emitter slot `slot`'s sky half, whose directions carry a sky of
+    /// mean elevation sine `m` ([`crate::scene::sky_elevations`]): [`flat_sky`] of its horizon and zenith
+    /// entries when its sky has a gradient, else its own entry.
+    #[must_use]
+    pub fn flat_sky(&self, slot: u32, m: f64) -> DVec3 {
+        let own = self.emission.get(slot as usize).copied().unwrap_or(Vec3::ZERO).as_dvec3();
+        match self.horizon.zenith_of(slot).and_then(|z| self.emission.get(z as usize)) {
+            Some(&zenith) => flat_sky(own, zenith.as_dvec3(), m),
+            None => own,
+        }
+    }
+
     /// The emitter slot whose radiance emission entry `entry` is: the entry itself, or the split slot whose
-    /// ground half it is (None for an entry past the slots that no slot uses).
+    /// ground half or zenith it is (None for an entry past the slots that no slot uses).
     #[must_use]
     pub fn slot_of_entry(&self, entry: u32, slots: usize) -> Option<u32> {
         if (entry as usize) < slots {
             return Some(entry);
         }
-        self.horizon.ground.iter().position(|&g| g == Some(entry)).map(|s| s as u32)
+        let find = |v: &[Option<u32>]| v.iter().position(|&g| g == Some(entry)).map(|s| s as u32);
+        find(&self.horizon.ground).or_else(|| find(&self.horizon.zenith))
     }
 }
 
@@ -144,6 +225,15 @@ impl Params {
 #[must_use]
 pub fn joined_halves(sky: DVec3, ground: DVec3, upward: f64) -> DVec3 {
     (1.0 - upward) * sky + upward * ground
+}
+
+/// The one radiance of the same flux as a sky half with a gradient from `horizon` to `zenith` ([`Horizon`])
+/// whose directions carry a sky of mean elevation sine `m` (cosine-weighted; 4/(3π) ≈ 0.42 through a vertical
+/// pane): (1 − m)·horizon + m·zenith.
+#[inline]
+#[must_use]
+pub fn flat_sky(horizon: DVec3, zenith: DVec3, m: f64) -> DVec3 {
+    (1.0 - m) * horizon + m * zenith
 }
 
 /// Directional profile of emitted radiance at a front-facing direction with cosine `cos` to the geometric

@@ -72,8 +72,11 @@ fn columns_of_emitters_split_at_a_horizon_match_separate_basis_renders() {
     // the pixels: the ground halves are entries 3 and 4, listed among the slots' own entries.
     let GlossyRoom { scene, mut params, cam, pixels, settings } = glossy_room();
     params.emission.extend([Vec3::splat(2.0), Vec3::splat(0.3)]);
-    params.horizon =
-        tracer::params::Horizon { up: Vec3::new(0.8, 0.1, -0.5).normalize(), ground: vec![None, Some(3), Some(4)] };
+    params.horizon = tracer::params::Horizon {
+        up: Vec3::new(0.8, 0.1, -0.5).normalize(),
+        ground: vec![None, Some(3), Some(4)],
+        zenith: Vec::new(),
+    };
     check_columns(&scene, &params, &cam, &pixels, &settings, &[4, 1, 0, 3, 2]);
     // An entry past the slots that no slot owns has no column.
     let renderer = Renderer::new(&scene, &params, &settings).expect("renderer");

@@ -3,7 +3,8 @@
 //! emission gradient must still be found), the mean of many gradient estimates equals the mean of many
 //! finite-difference estimates within 3 combined standard errors. Each finite difference uses common random
 //! numbers (same seed and iteration at θ ± h); independent iterations give the standard errors. The light is
-//! also checked split at a horizon (`tracer::params::Horizon`), with each half's emission entry checked.
+//! also checked split at a horizon with its sky graded (`tracer::params::Horizon`), with each of its emission
+//! entries (sky at the horizon, ground, sky at the zenith) checked.
 
 mod common;
 
@@ -54,8 +55,9 @@ fn path_gradients_match_finite_differences_emission_split_at_a_horizon() {
     check_against_finite_differences(EmissionProfile::Uniform, true);
 }
 
-/// `split`: the ceiling light (slot 1) emits entry 1 towards directions below a tilted horizon and entry 3
-/// above it (the tilt puts the boundary across the light's hemisphere, so both halves reach the pixels).
+/// `split`: the ceiling light (slot 1) emits entry 3 towards directions above a tilted horizon and below it
+/// a sky graded from entry 1 (level) to entry 4 (straight down) (the tilt puts the boundary across the light's
+/// hemisphere, so every entry reaches the pixels).
 fn check_against_finite_differences(emission_profile: EmissionProfile, split: bool) {
     let scene = Scene::new(small_room()).expect("scene");
     let mut params = Params {
@@ -80,9 +82,13 @@ fn check_against_finite_differences(emission_profile: EmissionProfile, split: bo
         .collect();
     let settings = TracerSettings { max_depth: 4, rr_depth: 2, emission_profile };
     if split {
-        params.emission.push(Vec3::new(2.0, 3.0, 5.0));
-        params.horizon =
-            tracer::params::Horizon { up: Vec3::new(1.0, -0.3, 0.4).normalize(), ground: vec![None, Some(3), None] };
+        // Split, its sky graded from the horizon (entry 1) to the zenith (entry 4).
+        params.emission.extend([Vec3::new(2.0, 3.0, 5.0), Vec3::new(3.0, 2.0, 1.0)]);
+        params.horizon = tracer::params::Horizon {
+            up: Vec3::new(1.0, -0.3, 0.4).normalize(),
+            ground: vec![None, Some(3), None],
+            zenith: vec![None, Some(4), None],
+        };
     }
     let mut checks = vec![
         (Param::BaseColor(0, 0), 0.05),
@@ -97,6 +103,7 @@ fn check_against_finite_differences(emission_profile: EmissionProfile, split: bo
     ];
     if split {
         checks.push((Param::Emission(3, 2), 0.5));
+        checks.push((Param::Emission(4, 0), 0.5));
     }
     let objective = |p: &Params, it: u64| -> f64 {
         let img = render_pixels(&scene, p, &[cam], &pixels, 24, &settings, 1234, it).expect("render");

@@ -14,7 +14,9 @@
 //! horizon (a window pane, `optim::fit::horizon`) also carries
 //! `"horizon": {"up": [0, 0, 1], "sky": [..], "ground": [..]}`: it emits `sky` in the directions that point
 //! down or level (ω·up ≤ 0) and `ground` in those that point up, and its `emission` is the uniform radiance
-//! that sends the same flux (what a renderer without the split, and every mesh export, uses).
+//! that sends the same flux (what a renderer without the split, and every mesh export, uses). A split whose
+//! sky half varies with elevation also carries `"zenith": [..]`: its sky half is then `sky` at the horizon and
+//! `zenith` at the zenith, blended linearly in s = −ω·up (`tracer::params::Horizon`).
 
 use std::path::{Path, PathBuf};
 
@@ -73,6 +75,10 @@ pub struct HorizonEmission {
     pub sky: [f32; 3],
     /// Radiance in the directions with ω·up > 0.
     pub ground: [f32; 3],
+    /// Radiance straight down (ω·up = −1) when the sky half varies with elevation; `sky` is then its radiance
+    /// leaving level. Absent for one sky radiance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zenith: Option<[f32; 3]>,
 }
 
 /// Errors reading a materials file or matching it to a scene.
@@ -92,13 +98,15 @@ pub enum MaterialsError {
 
 impl HorizonEmission {
     /// The two halves of emitter slot `k` in the tracer's tables, `None` when the slot is not split:
-    /// `emission[k]` is its sky half and the entry `horizon` names its ground half.
+    /// `emission[k]` is its sky half (at the horizon when it has a zenith entry) and the entry `horizon` names
+    /// its ground half.
     #[must_use]
     pub fn of_slot(horizon: &tracer::params::Horizon, emission: &[Vec3], k: usize) -> Option<Self> {
         horizon.ground_of(k as u32).map(|g| HorizonEmission {
             up: horizon.up.to_array(),
             sky: emission[k].to_array(),
             ground: emission[g as usize].to_array(),
+            zenith: horizon.zenith_of(k as u32).map(|z| emission[z as usize].to_array()),
         })
     }
 }
@@ -151,8 +159,8 @@ impl MaterialsFile {
                 return Err(bad("emission must be finite and non-negative"));
             }
             if let Some(h) = &o.horizon {
-                if !h.sky.iter().chain(&h.ground).all(|&e| e.is_finite() && e >= 0.0) {
-                    return Err(bad("horizon.sky and horizon.ground must be finite and non-negative"));
+                if !h.sky.iter().chain(&h.ground).chain(h.zenith.iter().flatten()).all(|&e| e.is_finite() && e >= 0.0) {
+                    return Err(bad("horizon.sky, horizon.ground and horizon.zenith must be finite and non-negative"));
                 }
                 // 1e-3: a unit vector written with f32's 9 significant digits is unit to ~1e-7 (NaN is not).
                 let unit = (Vec3::from(h.up).length() - 1.0).abs() < 1e-3;
@@ -189,6 +197,12 @@ impl MaterialsFile {
             .filter_map(|(k, o)| o.horizon.map(|h| (k as u32, Vec3::from(h.ground))))
             .collect();
         params.split_at_horizon(up, halves);
+        let zeniths: Vec<(u32, Vec3)> = objects
+            .iter()
+            .enumerate()
+            .filter_map(|(k, o)| o.horizon.and_then(|h| h.zenith).map(|z| (k as u32, Vec3::from(z))))
+            .collect();
+        params.add_zeniths(zeniths);
         Ok(params)
     }
 
@@ -282,7 +296,7 @@ mod tests {
         m.objects.push(ObjectMaterial { id: 9, label: "window".into(), ..m.objects[0].clone() });
         m.objects[1].emission = [2.0, 2.0, 2.0];
         m.objects[1].horizon =
-            Some(HorizonEmission { up: [0.0, 0.0, 1.0], sky: [3.0, 3.0, 3.0], ground: [1.0, 1.0, 1.0] });
+            Some(HorizonEmission { up: [0.0, 0.0, 1.0], sky: [3.0, 3.0, 3.0], ground: [1.0, 1.0, 1.0], zenith: None });
         std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
         let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
         assert_eq!(v["objects"][1]["horizon"]["ground"], serde_json::json!([1.0, 1.0, 1.0]));
@@ -296,9 +310,37 @@ mod tests {
         assert_eq!(p.horizon.up, Vec3::Z);
         assert_eq!(read.uniform_emission_for(&[9], &path).unwrap(), [Vec3::splat(2.0)]);
         // A horizon whose up is not a unit vector is refused, naming the object.
-        m.objects[1].horizon = Some(HorizonEmission { up: [0.0, 0.0, 2.0], sky: [3.0; 3], ground: [1.0; 3] });
+        m.objects[1].horizon =
+            Some(HorizonEmission { up: [0.0, 0.0, 2.0], sky: [3.0; 3], ground: [1.0; 3], zenith: None });
         std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
         let e = MaterialsFile::read(&path).unwrap_err();
         assert!(e.to_string().contains("id 9") && e.to_string().contains("horizon.up"), "{e}");
+    }
+
+    #[test]
+    fn a_graded_sky_reads_back_with_its_zenith_after_the_ground_halves() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.json");
+        let mut m = sample();
+        m.objects.push(ObjectMaterial { id: 9, label: "window".into(), ..m.objects[0].clone() });
+        let graded = HorizonEmission { up: [0.0, 0.0, 1.0], sky: [3.0; 3], ground: [1.0; 3], zenith: Some([0.5; 3]) };
+        m.objects[1].horizon = Some(graded);
+        std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
+        let read = MaterialsFile::read(&path).unwrap();
+        assert_eq!(read, m);
+        // Objects [9, 7]: the sky at the horizon in object 9's own entry, then its ground half, then its zenith.
+        let p = read.params_for(&[9, 7], &path).unwrap();
+        assert_eq!(p.emission, [Vec3::splat(3.0), Vec3::new(10.0, 9.0, 8.0), Vec3::splat(1.0), Vec3::splat(0.5)]);
+        assert_eq!(
+            (p.horizon.ground.as_slice(), p.horizon.zenith.as_slice()),
+            ([Some(2), None].as_slice(), [Some(3), None].as_slice())
+        );
+        // And back: the slot's halves as written.
+        assert_eq!(HorizonEmission::of_slot(&p.horizon, &p.emission, 0), Some(graded));
+        // A negative zenith is refused, naming the object.
+        m.objects[1].horizon = Some(HorizonEmission { zenith: Some([-1.0, 0.5, 0.5]), ..graded });
+        std::fs::write(&path, serde_json::to_string(&m).unwrap()).unwrap();
+        let e = MaterialsFile::read(&path).unwrap_err();
+        assert!(e.to_string().contains("id 9") && e.to_string().contains("horizon.zenith"), "{e}");
     }
 }

@@ -18,7 +18,7 @@
 //!   (docs/optim/design-measurements.md, "Solve pixels per object and the checker light").
 
 use super::jacobian::{self, Ctx};
-use super::layout::{self, BASE_COLOR, EMISSION, EMISSION_GROUND, EMISSION_MAX, idx};
+use super::layout::{self, BASE_COLOR, EMISSION, EMISSION_GROUND, EMISSION_MAX, EMISSION_ZENITH, idx};
 use super::linear::{self, DataLoss, Problem};
 use super::pixels::WeightedDraw;
 use rayon::prelude::*;
@@ -120,10 +120,10 @@ pub fn solve_step_pinned(
     let key2 = iteration_key ^ SECOND_ESTIMATE;
     let joint = opts.unknowns == Unknowns::EmissionAndBaseColor;
     // The emission unknowns (object, its layout entry, the tracer's emission entry): every object's own (its
-    // sky half when split), then the ground half of every object the context splits, in object order
-    // (`layout::Split::params`). An emission-only solve leaves out the objects held at 0: their columns would
-    // be rendered for nothing (the solver drops a variable held at 0 from its sums, so the others' values are
-    // the same bit for bit).
+    // sky half when split), then the ground half of every object the context splits, then the zenith of every
+    // split object whose sky has a gradient, in object order (`layout::Split::params`). An emission-only
+    // solve leaves out the objects held at 0: their columns would be rendered for nothing (the solver drops a
+    // variable held at 0 from its sums, so the others' values are the same bit for bit).
     let held = |k: usize| !joint && no_emission.get(k).copied().unwrap_or(false);
     let unknowns: Vec<(usize, usize, u32)> = (0..k_count)
         .filter(|&k| !held(k))
@@ -133,11 +133,17 @@ pub fn solve_step_pinned(
                 .filter(|&k| !held(k))
                 .filter_map(|k| params.horizon.ground_of(k as u32).map(|g| (k, EMISSION_GROUND, g))),
         )
+        .chain(
+            (0..k_count)
+                .filter(|&k| !held(k))
+                .filter_map(|k| params.horizon.zenith_of(k as u32).map(|z| (k, EMISSION_ZENITH, z))),
+        )
         .collect();
     for k in (0..k_count).filter(|&k| held(k)) {
         for c in 0..3 {
             x[idx(k, EMISSION + c)] = 0.0;
             x[idx(k, EMISSION_GROUND + c)] = 0.0;
+            x[idx(k, EMISSION_ZENITH + c)] = 0.0;
         }
     }
     // Emission-only solves use basis renders (every object's column by next-event estimation, also for objects

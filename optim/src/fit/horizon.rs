@@ -14,21 +14,26 @@
 //! 2. **Candidates** are the kept emitters with at least [`MIN_SIDE`] of their cosine-weighted emission on
 //!    each side of the horizon (`tracer::Scene::upward_shares`; a ceiling panel sends all of it down and has
 //!    nothing to split) that the photos see from both sides of it: each half is fitted where it is seen.
-//! 3. **Fit** (by model selection, `super::select`): every candidate split, its ground half starting at its
-//!    emission (both halves at those its emission test fitted where that test kept the emission only split),
-//!    emission and base colour are re-fitted together, as after a dropped emission (the albedos
+//! 3. **Fit** (by model selection, `super::select`): every candidate split, its sky half graded from the
+//!    horizon to the zenith (`tracer::params::Horizon`; the photos see a window's sky within about 20° of the
+//!    horizon, brighter and whiter there than the sky that lights the floor), its ground half and its zenith
+//!    starting at its emission (at the halves its emission test fitted where that test kept the emission only
+//!    split), emission and base colour are re-fitted together, as after a dropped emission (the albedos
 //!    were fitted under the uniform emitters' light; with them fixed, a sideways lamp's upward half took the
 //!    light the ceiling's too-dark albedo missed, 1.7× its truth on `data-fixtures/scenes/window.toml`).
 //! 4. **Test**, per candidate: the solved model with every candidate split against the same model with this
 //!    candidate joined again (one radiance of the same flux), rendered with the same random numbers on the
 //!    test pixels its light reaches (at most `object.holdout_pixels`): it keeps its split when the paired t of
 //!    its pixels' L1 gain exceeds the lobe test's threshold and the gain its minimum share of their mean
-//!    radiance. A lamp whose light is the same up and down gains nothing and keeps one radiance.
-//! 5. A candidate not kept is **joined** again, into the one radiance of the same flux as its halves; the
-//!    re-fit's albedos stay (its split did not change the light the photos show by a significant amount).
+//!    radiance. A lamp whose light is the same up and down gains nothing and keeps one radiance. A kept
+//!    split's gradient is tested the same way on the same pixels, against its sky made flat (one sky
+//!    radiance of the same flux), and kept on the same terms.
+//! 5. A candidate not kept is **joined** again, into the one radiance of the same flux as its halves, and a
+//!    kept split whose gradient is not kept has its sky made **flat**; the re-fit's albedos stay (the light the
+//!    photos show did not change by a significant amount).
 
 use super::jacobian::Ctx;
-use super::layout::{EMISSION, EMISSION_GROUND, Split, idx};
+use super::layout::{EMISSION, EMISSION_GROUND, EMISSION_ZENITH, Split, idx};
 use super::linear::paired_t;
 use super::paired::{MIN_GAIN, T_KEEP, l1, paired_renders, target};
 use super::pixels::{PixelSets, Sample};
@@ -91,9 +96,10 @@ pub(super) fn candidates(splittable: &Split, lit: &[Vec<usize>], x: &mut [f64], 
     for k in (0..emits.len()).filter(|&k| split[k]) {
         for c in 0..3 {
             x[idx(k, EMISSION_GROUND + c)] = x[idx(k, EMISSION + c)];
+            x[idx(k, EMISSION_ZENITH + c)] = x[idx(k, EMISSION + c)];
         }
     }
-    Split { up: splittable.up, split }
+    Split { up: splittable.up, gradient: split.clone(), split }
 }
 
 /// Per object with `wanted[k]`: whether it may be split — it sends at least [`MIN_SIDE`] of its emission to
@@ -103,12 +109,12 @@ pub(super) fn candidates(splittable: &Split, lit: &[Vec<usize>], x: &mut [f64], 
 pub(super) fn splittable(ctx: &Ctx<'_>, sets: &PixelSets, wanted: &[bool]) -> Split {
     let k_count = wanted.len();
     let Some(up) = split_up(ctx) else {
-        return Split { up: Vec3::ZERO, split: vec![false; k_count] };
+        return Split::flat(Vec3::ZERO, vec![false; k_count]);
     };
     let share = ctx.scene.upward_shares(up);
     let wanted: Vec<bool> = (0..k_count).map(|k| wanted[k] && is_candidate(&share, k)).collect();
     let seen = seen_from_each_side(ctx, sets, up, &wanted);
-    Split { up, split: (0..k_count).map(|k| wanted[k] && seen[k]).collect() }
+    Split::flat(up, (0..k_count).map(|k| wanted[k] && seen[k]).collect())
 }
 
 /// Per object with `wanted[k]`: whether the training pixels see it from above its horizon (the ground half's
@@ -130,11 +136,12 @@ fn seen_from_each_side(ctx: &Ctx<'_>, sets: &PixelSets, up: Vec3, wanted: &[bool
     sides.iter().map(|s| s.iter().all(|&n| n >= super::solve::MIN_PIXELS)).collect()
 }
 
-/// Step 4 of the module docs on `x`, fitted with every candidate of `all` split (`ctx` carries that split),
-/// testing on `test` (the held-out pixels, or capped training pixels when there are none: `test_name` says
-/// which) of which `lit[k]` are the rows that candidate k's light reaches. Returns the kept splits; every
-/// candidate not kept is joined again in `x` (one radiance of the same flux as its halves), and each
-/// candidate's reason is added to `why`.
+/// Step 4 of the module docs on `x`, fitted with every candidate of `all` split, its sky graded (`ctx` carries
+/// that split), testing on `test` (the held-out pixels, or capped training pixels when there are none:
+/// `test_name` says which) of which `lit[k]` are the rows that candidate k's light reaches. Returns the kept
+/// splits and, among them, the kept gradients; every candidate not kept is joined again in `x` (one radiance of
+/// the same flux), every kept split without its gradient has its sky made flat (one sky radiance of the same
+/// flux), and each candidate's reasons are added to `why`.
 pub(super) fn test(
     ctx: &Ctx<'_>,
     s: &ObjectFitSettings,
@@ -147,6 +154,7 @@ pub(super) fn test(
     let all = ctx.split;
     let (up, k_count) = (all.up, all.split.len());
     let share = ctx.scene.upward_shares(up);
+    let sky = ctx.scene.sky_elevations(up);
     let candidates: Vec<usize> = (0..k_count).filter(|&k| all.of(k)).collect();
     let x_all = x.to_vec();
 
@@ -155,61 +163,57 @@ pub(super) fn test(
     // joined again (one radiance of the same flux as its two halves): the difference is its own split's, given
     // the others'. (With no split in the other arm, a sideways lamp would be credited with the windows' gain on
     // the rows it shares with them; with only its own split in one arm, a window's gain would be masked by the
-    // others' light fitted without theirs.)
+    // others' light fitted without theirs.) A kept split's gradient is tested the same way, on the same rows,
+    // against its sky made flat.
     let budget = s.holdout_pixels as usize;
     let rank = |j: usize| streams::uniform(ctx.seed, draw::HORIZON_TEST_ORDER, streams::pixel_key(test[j].pixel), 0);
     let split_all = ctx.params(&x_all);
-    let mut kept = Split { up, split: vec![false; k_count] };
+    let mut kept = Split { up, split: vec![false; k_count], gradient: vec![false; k_count] };
+    let others =
+        |v: &[bool], k: usize| -> Vec<bool> { (0..k_count).map(|o| o != k && v.get(o) == Some(&true)).collect() };
     for (n, &k) in candidates.iter().enumerate() {
         check_stop(progress)?;
         let mut rows = lit[k].clone();
         rows.sort_by(|&a, &b| rank(a).total_cmp(&rank(b)).then(a.cmp(&b)));
         rows.truncate(budget);
         let pix: Vec<PixelRef> = rows.iter().map(|&j| test[j].pixel).collect();
+        let gain_over = |other: &tracer::Params, key: u64, label: String| -> Result<(f64, f64), FitError> {
+            let (a, b) = paired_renders(ctx, (other, &split_all), &pix, s.holdout_spp, key, progress, &label)?;
+            let d: Vec<f64> = rows
+                .iter()
+                .enumerate()
+                .map(|(i, &j)| {
+                    let t = target(&test[j]);
+                    l1(t, a[i].as_dvec3().to_array()) - l1(t, b[i].as_dvec3().to_array())
+                })
+                .collect();
+            let (gain, t) = paired_t(&d);
+            let mean = rows.iter().map(|&j| l1(target(&test[j]), [0.0; 3])).sum::<f64>() / rows.len() as f64;
+            Ok((gain / mean.max(f64::MIN_POSITIVE), t))
+        };
         let mut x_k = x_all.clone();
-        join(&mut x_k, k, share[k]);
-        let but_k = Split { up, split: (0..k_count).map(|o| o != k && all.of(o)).collect() };
-        let (a, b) = paired_renders(
-            ctx,
-            (&but_k.params(&x_k), &split_all),
-            &pix,
-            s.holdout_spp,
+        join(&mut x_k, k, share[k], all.graded(k).then_some(sky[k]));
+        let but_k = Split { up, split: others(&all.split, k), gradient: others(&all.gradient, k) };
+        let (rel, t) = gain_over(
+            &but_k.params(&x_k),
             key::SELECT_HORIZON_TEST,
-            progress,
-            &format!(
+            format!(
                 "model selection: horizon test, emitter {}/{} ({} pixels), block",
                 n + 1,
                 candidates.len(),
                 pix.len()
             ),
         )?;
-        let d: Vec<f64> = rows
-            .iter()
-            .enumerate()
-            .map(|(i, &j)| {
-                let t = target(&test[j]);
-                l1(t, a[i].as_dvec3().to_array()) - l1(t, b[i].as_dvec3().to_array())
-            })
-            .collect();
-        let (gain, t) = paired_t(&d);
-        let mean = rows.iter().map(|&j| l1(target(&test[j]), [0.0; 3])).sum::<f64>() / rows.len() as f64;
-        let rel = gain / mean.max(f64::MIN_POSITIVE);
         let half = |at: usize| -> [f64; 3] { std::array::from_fn(|c| x_all[idx(k, at + c)]) };
         let fitted = format!(
-            "split at the horizon ({:.0} % of its emission upward), the sky half {:.4?} and the ground half {:.4?}",
+            "split at the horizon ({:.0} % of its emission upward), the sky half {:.4?} at the horizon and {:.4?} at \
+             the zenith, the ground half {:.4?}",
             100.0 * share[k],
             half(EMISSION),
+            half(EMISSION_ZENITH),
             half(EMISSION_GROUND)
         );
-        if t > T_KEEP && rel > MIN_GAIN {
-            kept.split[k] = true;
-            why[k].push(format!(
-                "emission {fitted}: the split lowers the {test_name} L1 of {} pixels its light reaches by {:.2} % \
-                 of their mean radiance (t = {t:.1})",
-                rows.len(),
-                100.0 * rel
-            ));
-        } else {
+        if !(t > T_KEEP && rel > MIN_GAIN) {
             why[k].push(format!(
                 "one emission in every direction: {fitted} changes the {test_name} L1 of {} pixels its light \
                  reaches by {:+.3} % (t = {t:.1}; needs t > {T_KEEP} and > {:.1} %)",
@@ -217,17 +221,76 @@ pub(super) fn test(
                 -100.0 * rel,
                 100.0 * MIN_GAIN
             ));
+            continue;
+        }
+        kept.split[k] = true;
+        why[k].push(format!(
+            "emission {fitted}: the split lowers the {test_name} L1 of {} pixels its light reaches by {:.2} % of \
+             their mean radiance (t = {t:.1})",
+            rows.len(),
+            100.0 * rel
+        ));
+        if !all.graded(k) {
+            continue;
+        }
+        let mut x_f = x_all.clone();
+        flatten(&mut x_f, k, sky[k]);
+        let flat_k = Split { gradient: others(&all.gradient, k), ..all.clone() };
+        let (rel, t) = gain_over(
+            &flat_k.params(&x_f),
+            key::SELECT_SKY_TEST,
+            format!(
+                "model selection: sky gradient test, emitter {}/{} ({} pixels), block",
+                n + 1,
+                candidates.len(),
+                pix.len()
+            ),
+        )?;
+        if t > T_KEEP && rel > MIN_GAIN {
+            kept.gradient[k] = true;
+            why[k].push(format!(
+                "its sky varies with elevation: against one sky radiance of the same flux the gradient lowers the \
+                 {test_name} L1 of the same pixels by {:.2} % of their mean radiance (t = {t:.1})",
+                100.0 * rel
+            ));
+        } else {
+            why[k].push(format!(
+                "one sky radiance: the sky's gradient changes the {test_name} L1 of the same pixels by {:+.3} % \
+                 (t = {t:.1}; needs t > {T_KEEP} and > {:.1} %)",
+                -100.0 * rel,
+                100.0 * MIN_GAIN
+            ));
         }
     }
-    for &k in candidates.iter().filter(|&&k| !kept.of(k)) {
-        join(x, k, share[k]);
+    for &k in &candidates {
+        if !kept.of(k) {
+            join(x, k, share[k], all.graded(k).then_some(sky[k]));
+        } else if all.graded(k) && !kept.graded(k) {
+            flatten(x, k, sky[k]);
+        }
     }
     Ok(kept)
 }
 
+/// Object k's sky half made flat: its horizon and zenith radiances (`EMISSION`, `EMISSION_ZENITH`) replaced by
+/// the one sky radiance of the same flux ([`tracer::params::flat_sky`], m the mean elevation sine of its sky,
+/// `tracer::scene::sky_elevations`), its zenith entries cleared.
+fn flatten(x: &mut [f64], k: usize, m: f64) {
+    let v = |x: &[f64], at: usize| glam::DVec3::new(x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]);
+    let flat = tracer::params::flat_sky(v(x, EMISSION), v(x, EMISSION_ZENITH), m);
+    for c in 0..3 {
+        x[idx(k, EMISSION + c)] = flat[c];
+        x[idx(k, EMISSION_ZENITH + c)] = 0.0;
+    }
+}
+
 /// Object k's emission joined from its two halves into the one radiance of the same flux
-/// ([`tracer::params::joined_halves`], u its upward share), its ground entries cleared.
-fn join(x: &mut [f64], k: usize, u: f64) {
+/// ([`tracer::params::joined_halves`], u its upward share; its sky made flat first when `graded`,
+/// [`flatten`] with m), its ground and zenith entries cleared.
+fn join(x: &mut [f64], k: usize, u: f64, graded: Option<f64>) {
+    if let Some(m) = graded {
+        flatten(x, k, m);
+    }
     let half = |at: usize| glam::DVec3::new(x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]);
     let joined = tracer::params::joined_halves(half(EMISSION), half(EMISSION_GROUND), u);
     for c in 0..3 {
@@ -262,7 +325,7 @@ mod tests {
         for c in 0..3 {
             x[idx(1, EMISSION_GROUND + c)] = 1.0 + c as f64;
         }
-        let split = Split { up: Vec3::Z, split: vec![false, true, false] };
+        let split = Split::flat(Vec3::Z, vec![false, true, false]);
         let p = split.params(&x);
         assert_eq!(p.emission.len(), 4);
         assert_eq!(p.emission[3], Vec3::new(1.0, 2.0, 3.0));
@@ -271,5 +334,41 @@ mod tests {
         let share = [0.5, 0.0, 0.04, 0.96, 0.05];
         let candidates: Vec<bool> = (0..share.len()).map(|k| is_candidate(&share, k)).collect();
         assert_eq!(candidates, [true, false, false, false, true]);
+    }
+
+    #[test]
+    fn a_graded_split_appends_its_zenith_after_the_ground_halves_and_flattens_to_the_same_flux() {
+        let mut x = super::super::layout::initial(3);
+        let (h, g, z) = ([2.0, 2.2, 2.6], [0.5, 0.5, 0.4], [0.9, 1.3, 2.6]);
+        for k in 1..3 {
+            for c in 0..3 {
+                (x[idx(k, EMISSION + c)], x[idx(k, EMISSION_GROUND + c)]) = (h[c], g[c]);
+                x[idx(k, EMISSION_ZENITH + c)] = z[c];
+            }
+        }
+        let split = Split { up: Vec3::Z, split: vec![false, true, true], gradient: vec![true, false, true] };
+        let p = split.params(&x);
+        // Objects 1 and 2 split (grounds 3, 4); only object 2 graded (object 0's flag is not read unsplit).
+        assert_eq!(p.horizon.ground, vec![None, Some(3), Some(4)]);
+        assert_eq!(p.horizon.zenith, vec![None, None, Some(5)]);
+        assert_eq!(p.emission[5], Vec3::new(0.9, 1.3, 2.6));
+        // Joined, the graded and the flat object keep the flux of their halves: through a vertical pane the sky
+        // half carries a sky of mean elevation sine 4/(3π).
+        let m = 4.0 / (3.0 * std::f64::consts::PI);
+        let (mut flat, mut graded) = (x.clone(), x.clone());
+        join(&mut flat, 1, 0.5, None);
+        join(&mut graded, 2, 0.5, Some(m));
+        for c in 0..3 {
+            let sky = (1.0 - m) * h[c] + m * z[c];
+            assert!((graded[idx(2, EMISSION + c)] - (0.5 * sky + 0.5 * g[c])).abs() < 1e-12);
+            assert!((flat[idx(1, EMISSION + c)] - (0.5 * h[c] + 0.5 * g[c])).abs() < 1e-12);
+            assert_eq!((graded[idx(2, EMISSION_GROUND + c)], graded[idx(2, EMISSION_ZENITH + c)]), (0.0, 0.0));
+        }
+        // Made flat only, it keeps its ground half and its sky's flux.
+        flatten(&mut x, 2, m);
+        for c in 0..3 {
+            assert!((x[idx(2, EMISSION + c)] - ((1.0 - m) * h[c] + m * z[c])).abs() < 1e-12);
+            assert_eq!((x[idx(2, EMISSION_GROUND + c)], x[idx(2, EMISSION_ZENITH + c)]), (g[c], 0.0));
+        }
     }
 }

@@ -1,21 +1,24 @@
 //! The flat parameter vector of the per-object fit and its mapping to the tracer's tables.
 //!
-//! Object k owns entries `12k .. 12k + 12`: base colour RGB, roughness, metallic, specular, emission RGB, and
-//! the RGB ground half of its emission, read only when model selection splits the object's emission at the
-//! horizon (`super::horizon`; then `emission` is its sky half).
+//! Object k owns entries `15k .. 15k + 15`: base colour RGB, roughness, metallic, specular, emission RGB, the
+//! RGB ground half of its emission, read only when model selection splits the object's emission at the
+//! horizon (`super::horizon`; then `emission` is its sky half), and the RGB zenith of that sky half, read only
+//! when the split's sky varies with elevation (then `emission` is its sky at the horizon;
+//! `tracer::params::Horizon`).
 //! Values are kept in f64 (the optimiser's precision, and what checkpoints store) and converted to f32 for
 //! the tracer, so an interrupted and resumed run sees exactly the same numbers as an uninterrupted one.
 
 use glam::Vec3;
 
 /// Entries per object.
-pub const PER_OBJECT: usize = 12;
+pub const PER_OBJECT: usize = 15;
 pub const BASE_COLOR: usize = 0;
 pub const ROUGHNESS: usize = 3;
 pub const METALLIC: usize = 4;
 pub const SPECULAR: usize = 5;
 pub const EMISSION: usize = 6;
 pub const EMISSION_GROUND: usize = 9;
+pub const EMISSION_ZENITH: usize = 12;
 
 /// Upper bound of emission in the optimiser's box. Emission is radiance in image units and has no natural
 /// upper limit; 1e6 only keeps a diverging run finite (HDR pixels of 1e5 are the largest the fit must handle).
@@ -67,23 +70,27 @@ pub fn bounds(objects: usize) -> (Vec<f64>, Vec<f64>) {
         for c in 0..3 {
             hi[idx(k, EMISSION + c)] = EMISSION_MAX;
             hi[idx(k, EMISSION_GROUND + c)] = EMISSION_MAX;
+            hi[idx(k, EMISSION_ZENITH + c)] = EMISSION_MAX;
         }
     }
     (lo, hi)
 }
 
 /// Which emitters are split at the horizon (model selection's decision, `super::horizon`); their halves are
-/// the layout's `EMISSION` (sky) and `EMISSION_GROUND` entries.
+/// the layout's `EMISSION` (sky) and `EMISSION_GROUND` entries, and the sky half of those with a gradient runs
+/// from `EMISSION` (at the horizon) to `EMISSION_ZENITH`.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Split {
     /// World up (unit; zero when no split is possible).
     pub up: Vec3,
     /// Per object: split (an object past the end is not).
     pub split: Vec<bool>,
+    /// Per object: its sky half varies with elevation (only read for split objects; past the end: does not).
+    pub gradient: Vec<bool>,
 }
 
 /// No object split: the fit's context until model selection splits any.
-pub static NO_SPLIT: Split = Split { up: Vec3::ZERO, split: Vec::new() };
+pub static NO_SPLIT: Split = Split { up: Vec3::ZERO, split: Vec::new(), gradient: Vec::new() };
 
 impl Split {
     /// True when no object is split.
@@ -98,15 +105,29 @@ impl Split {
         self.split.get(k).copied().unwrap_or(false)
     }
 
-    /// The tracer's tables of `x`: [`to_params`] with the ground half of every split object
-    /// appended after the objects' own emission entries, in object order.
+    /// Whether object k is split and its sky half varies with elevation.
+    #[must_use]
+    pub fn graded(&self, k: usize) -> bool {
+        self.of(k) && self.gradient.get(k).copied().unwrap_or(false)
+    }
+
+    /// Splits `split` at `up`, none with a gradient.
+    #[must_use]
+    pub fn flat(up: Vec3, split: Vec<bool>) -> Self {
+        Split { up, split, gradient: Vec::new() }
+    }
+
+    /// The tracer's tables of `x`: [`to_params`] with the ground half of every split object appended after
+    /// the objects' own emission entries, in object order, then the zenith of every split object with a
+    /// gradient, in object order.
     #[must_use]
     pub fn params(&self, x: &[f64]) -> tracer::Params {
         let mut p = to_params(x);
-        let v = |k: usize, c: usize| x[idx(k, EMISSION_GROUND + c)] as f32;
-        let halves =
-            (0..p.emission.len()).filter(|&k| self.of(k)).map(|k| (k as u32, Vec3::new(v(k, 0), v(k, 1), v(k, 2))));
-        p.split_at_horizon(self.up, halves);
+        let v =
+            |k: usize, at: usize| Vec3::new(x[idx(k, at)] as f32, x[idx(k, at + 1)] as f32, x[idx(k, at + 2)] as f32);
+        let n = p.emission.len();
+        p.split_at_horizon(self.up, (0..n).filter(|&k| self.of(k)).map(|k| (k as u32, v(k, EMISSION_GROUND))));
+        p.add_zeniths((0..n).filter(|&k| self.graded(k)).map(|k| (k as u32, v(k, EMISSION_ZENITH))));
         p
     }
 }

@@ -26,7 +26,8 @@ use super::family;
 use super::horizon;
 use super::jacobian::{self, Ctx};
 use super::layout::{
-    self, BASE_COLOR, EMISSION, EMISSION_GROUND, EMISSION_MAX, METALLIC, PER_OBJECT, ROUGHNESS, SPECULAR, Split, idx,
+    self, BASE_COLOR, EMISSION, EMISSION_GROUND, EMISSION_MAX, EMISSION_ZENITH, METALLIC, PER_OBJECT, ROUGHNESS,
+    SPECULAR, Split, idx,
 };
 use super::linear::{self, paired_t};
 use super::paired::{
@@ -131,8 +132,10 @@ impl AveragedSteps {
             progress.set_position(u64::from(step));
         }
         for k in 0..x.len() / PER_OBJECT {
-            for p in
-                (BASE_COLOR..BASE_COLOR + 3).chain(EMISSION..EMISSION + 3).chain(EMISSION_GROUND..EMISSION_GROUND + 3)
+            for p in (BASE_COLOR..BASE_COLOR + 3)
+                .chain(EMISSION..EMISSION + 3)
+                .chain(EMISSION_GROUND..EMISSION_GROUND + 3)
+                .chain(EMISSION_ZENITH..EMISSION_ZENITH + 3)
             {
                 x[idx(k, p)] = sum[idx(k, p)] / n_avg;
             }
@@ -1196,6 +1199,7 @@ pub fn choose_models(
         if all.of(k) {
             for c in 0..3 {
                 (x[idx(k, EMISSION + c)], x[idx(k, EMISSION_GROUND + c)]) = (sky[c], ground[c]);
+                x[idx(k, EMISSION_ZENITH + c)] = sky[c];
             }
         }
     }
@@ -1221,7 +1225,8 @@ pub fn choose_models(
         run.apply(&ctx_all, s, sets, &mut x, free, &no_emission, progress)?;
         // The re-fit may take a kept emission to 0 (the solve's bounds): its model then has none.
         for k in 0..k_count {
-            let ground_dark = !all.of(k) || (0..3).all(|c| x[idx(k, EMISSION_GROUND + c)] == 0.0);
+            let ground_dark = !all.of(k)
+                || (0..3).all(|c| x[idx(k, EMISSION_GROUND + c)] == 0.0 && x[idx(k, EMISSION_ZENITH + c)] == 0.0);
             if emits[k] && (0..3).all(|c| x[idx(k, EMISSION + c)] == 0.0) && ground_dark {
                 emits[k] = false;
                 why[k].push("the re-fit after a dropped emission set this emission to 0".into());

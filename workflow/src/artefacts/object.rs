@@ -17,9 +17,9 @@ pub use super::checkpoint::CHECKPOINT_FILE;
 pub const MATERIALS_FILE: &str = "materials.json";
 /// The trajectory's file name.
 pub const HISTORY_FILE: &str = "history.json";
-/// Format tag of `checkpoint.json` (2: 12 parameters per object, the ground half of an emission split at the
-/// horizon among them; a checkpoint of 1 is not resumed).
-pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/2";
+/// Format tag of `checkpoint.json` (3: 15 parameters per object, the ground half of an emission split at the
+/// horizon and the zenith of its sky among them; a checkpoint of 1 or 2 is not resumed).
+pub const CHECKPOINT_FORMAT: &str = "ipt-object-checkpoint/3";
 /// The measured tone-curve exponent's file name.
 pub const PHOTOMETRIC_FILE: &str = "photometric.json";
 /// Format tag of `photometric.json`.

@@ -145,8 +145,8 @@ pub fn read_result(run_dir: &Path) -> Result<Option<TriangleState>, StageError> 
         f32_col(FACE_COLUMNS[5])?,
         f32_col(FACE_COLUMNS[6])?,
     ];
-    // The objects' own entries come first; the ground halves of split emitters follow them.
-    let objects = r.emission.len().saturating_sub(r.horizon.ground.iter().flatten().count());
+    // The objects' own entries come first; the ground halves and zeniths of split emitters follow them.
+    let objects = r.emission.len().saturating_sub(r.horizon.extra_entries());
     let face_object = super::face_objects(&ply, objects, &mesh_path, RESULT_FILE)?;
     let materials = (0..r.triangles)
         .map(|t| tracer::Material {
@@ -188,7 +188,7 @@ mod tests {
             materials: vec![m(0.123_456_79), m(0.987_654_3)],
             // Object 1 is split at the horizon: its ground half is the entry after the objects'.
             emission: vec![Vec3::ZERO, Vec3::new(3.0, 2.0, 1.0), Vec3::new(0.5, 0.4, 0.3)],
-            horizon: tracer::params::Horizon { up: Vec3::Z, ground: vec![None, Some(2)] },
+            horizon: tracer::params::Horizon { up: Vec3::Z, ground: vec![None, Some(2)], zenith: Vec::new() },
             rounds_done: 2,
             log: Vec::new(),
         }

@@ -586,7 +586,7 @@ mod tests {
             face_object: vec![0, 0, 1],
             materials: vec![m(0.2), m(0.6), m(0.9)],
             emission: vec![Vec3::ZERO, Vec3::new(3.0, 2.0, 1.0), Vec3::new(0.5, 0.4, 0.3)],
-            horizon: tracer::params::Horizon { up: Vec3::Z, ground: vec![None, Some(2)] },
+            horizon: tracer::params::Horizon { up: Vec3::Z, ground: vec![None, Some(2)], zenith: Vec::new() },
             rounds_done: 1,
             log: Vec::new(),
         };

@@ -11,7 +11,7 @@
 //! - `history.json` — `{"format": "ipt-object-history/1", "history": [...], "why": [...], "traced_paths",
 //!   "discarded_samples"}`: the fit's per-iteration trajectory, each object's model decision, and how many
 //!   path samples the fit traced and how many of them the tracer discarded as non-finite;
-//! - `checkpoint.json` while the stage runs — `{"format": "ipt-object-checkpoint/2", "config_sha256",
+//! - `checkpoint.json` while the stage runs — `{"format": "ipt-object-checkpoint/3", "config_sha256",
 //!   "inputs_sha256", "state"}`, rewritten atomically at every checkpoint the fit hands out and deleted once
 //!   the outputs above are written. A rerun resumes from it only when both hashes match the current run
 //!   (same config section, same inputs), so a stale checkpoint is never mixed into a different fit.
@@ -199,7 +199,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     // of the same flux (the materials.json schema).
     let horizon = &outcome.params.horizon;
     let uniform = if horizon.ground.iter().any(Option::is_some) {
-        outcome.params.uniform_emission(&scene.upward_shares(horizon.up))
+        outcome.params.uniform_emission(&scene.upward_shares(horizon.up), &scene.sky_elevations(horizon.up))
     } else {
         outcome.params.emission.clone()
     };
