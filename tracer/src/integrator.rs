@@ -330,7 +330,7 @@ fn trace_mode<const GRAD: bool>(
         if factor > 0.0 {
             let mis = hit_mis(lights, emitter, prev_bsdf_pdf, t, cos_o);
             v.le_factor = factor * mis;
-            v.emitter = params.emission_entry(emitter, wo, sky_pick(rng, depth, false));
+            v.emitter = params.emission_entry(emitter, wo, || sky_pick(rng, depth, false));
             v.le = params.emission[v.emitter as usize] * v.le_factor;
             l += beta * v.le;
         }
@@ -349,10 +349,9 @@ fn trace_mode<const GRAD: bool>(
         let bsdf = material.at(wo_l);
 
         // Next-event estimation, up to its shadow ray (traced below).
-        let u_sky = sky_pick(rng, depth, true);
         let shadow = light.and_then(|ls| {
             connect::<GRAD>(scene, profile, &bsdf, &frame, sp.p, ng, ls, |slot, wo| {
-                let entry = params.emission_entry(slot, wo, u_sky);
+                let entry = params.emission_entry(slot, wo, || sky_pick(rng, depth, true));
                 (entry, params.emission[entry as usize])
             })
         });
@@ -454,7 +453,7 @@ pub(crate) fn trace_columns(
         let cos_o = sp.ng.dot(wo);
         let factor = profile.factor(cos_o);
         if factor > 0.0 {
-            let hit_entry = params.emission_entry(emitter, wo, sky_pick(rng, depth, false));
+            let hit_entry = params.emission_entry(emitter, wo, || sky_pick(rng, depth, false));
             for (i, (sampler, &entry)) in cols.samplers.iter().zip(&cols.entries).enumerate() {
                 let mis = hit_mis(sampler, emitter, prev_bsdf_pdf, t, cos_o);
                 let e = if entry == hit_entry { Vec3::ONE } else { Vec3::ZERO };
@@ -492,11 +491,10 @@ pub(crate) fn trace_columns(
             }
             pick
         }));
-        let u_sky = sky_pick(rng, depth, true);
         for ((shadow, pick), &entry) in shadows.iter_mut().zip(picks.iter()).zip(&cols.entries) {
             *shadow = pick.and_then(|pick| {
                 connect::<false>(scene, profile, &bsdf, &frame, sp.p, ng, pick.point(scene, u_point), |slot, wo| {
-                    let e = params.emission_entry(slot, wo, u_sky);
+                    let e = params.emission_entry(slot, wo, || sky_pick(rng, depth, true));
                     (e, if e == entry { Vec3::ONE } else { Vec3::ZERO })
                 })
             });

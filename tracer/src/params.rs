@@ -126,19 +126,20 @@ impl Params {
     }
 
     /// The emission entry that emitter slot `slot` uses for radiance leaving it in direction `wo` (unit, away
-    /// from the surface), with `u` uniform in [0, 1): its ground entry when the slot is split and `wo` points
-    /// up; its zenith entry with probability s = −wo·up when its sky half has a gradient and `wo` points down
-    /// ([`Horizon`]); else the slot's own.
+    /// from the surface), with `u` drawing a number uniform in [0, 1) (called only for a graded sky, so paths
+    /// that meet none hash nothing): its ground entry when the slot is split and `wo` points up; its zenith
+    /// entry with probability s = −wo·up when its sky half has a gradient and `wo` points down ([`Horizon`]);
+    /// else the slot's own.
     #[inline]
     #[must_use]
-    pub fn emission_entry(&self, slot: u32, wo: Vec3, u: f32) -> u32 {
+    pub fn emission_entry(&self, slot: u32, wo: Vec3, u: impl FnOnce() -> f32) -> u32 {
         let Some(g) = self.horizon.ground_of(slot) else { return slot };
         let up = wo.dot(self.horizon.up);
         if up > 0.0 {
             return g;
         }
         match self.horizon.zenith_of(slot) {
-            Some(z) if u < -up => z,
+            Some(z) if u() < -up => z,
             _ => slot,
         }
     }
