@@ -176,15 +176,14 @@ pub fn solve_step_pinned(
     let (jm, jm2) = (base_color_cols(&jr), base_color_cols(&jr2));
     let targets: Vec<glam::Vec3> = samples.iter().map(|s| s.target).collect();
     let groups: Vec<u32> = samples.iter().map(|s| s.object.unwrap_or(u32::MAX)).collect();
-    let triple = |k: usize, at: usize| [x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]];
     // The joint step keeps the emitters it is given (see the module docs): no emission penalty, and an object
     // that does not emit does not start to.
-    let dark: Vec<bool> = (0..k_count).map(|k| triple(k, EMISSION).iter().all(|&v| v == 0.0)).collect();
+    let dark: Vec<bool> = (0..k_count).map(|k| layout::rgb(x, k, EMISSION).iter().all(|&v| v == 0.0)).collect();
     let pinned_object = pinned_objects(no_emission, &dark, free_base_color, joint, opts.support);
     let pinned: Vec<bool> = unknowns.iter().map(|&(k, _, _)| pinned_object[k]).collect();
     let opts = &if joint { SolveOptions { emission_l1: 0.0, ..*opts } } else { *opts };
-    let mut emission: Vec<[f64; 3]> = unknowns.iter().map(|&(k, at, _)| triple(k, at)).collect();
-    let mut base_color: Vec<[f64; 3]> = free.iter().map(|&k| triple(k, BASE_COLOR)).collect();
+    let mut emission: Vec<[f64; 3]> = unknowns.iter().map(|&(k, at, _)| layout::rgb(x, k, at)).collect();
+    let mut base_color: Vec<[f64; 3]> = free.iter().map(|&k| layout::base_color(x, k)).collect();
     let loss = solve_on_columns(
         Columns { a: &je, b: &je2 },
         Columns { a: &jm, b: &jm2 },
@@ -198,15 +197,11 @@ pub fn solve_step_pinned(
         &vec![[1.0; 3]; free.len()],
         opts,
     );
-    for (&(k, at, _), e) in unknowns.iter().zip(&emission) {
-        for c in 0..3 {
-            x[idx(k, at + c)] = e[c];
-        }
+    for (&(k, at, _), &e) in unknowns.iter().zip(&emission) {
+        layout::set_rgb(x, k, at, e);
     }
-    for (&k, rho) in free.iter().zip(&base_color) {
-        for c in 0..3 {
-            x[idx(k, BASE_COLOR + c)] = rho[c];
-        }
+    for (&k, &rho) in free.iter().zip(&base_color) {
+        layout::set_rgb(x, k, BASE_COLOR, rho);
     }
     Ok(loss)
 }

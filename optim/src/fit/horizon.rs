@@ -33,7 +33,7 @@
 //!    photos show did not change by a significant amount).
 
 use super::jacobian::Ctx;
-use super::layout::{EMISSION, EMISSION_GROUND, EMISSION_ZENITH, Split, idx};
+use super::layout::{self, EMISSION, EMISSION_GROUND, EMISSION_ZENITH, Split};
 use super::linear::paired_t;
 use super::paired::{MIN_GAIN, T_KEEP, l1, paired_renders, target};
 use super::pixels::{PixelSets, Sample};
@@ -94,10 +94,9 @@ pub(super) fn candidates(splittable: &Split, lit: &[Vec<usize>], x: &mut [f64], 
     let split: Vec<bool> =
         (0..emits.len()).map(|k| emits[k] && splittable.of(k) && lit.get(k).is_some_and(|l| l.len() >= 2)).collect();
     for k in (0..emits.len()).filter(|&k| split[k]) {
-        for c in 0..3 {
-            x[idx(k, EMISSION_GROUND + c)] = x[idx(k, EMISSION + c)];
-            x[idx(k, EMISSION_ZENITH + c)] = x[idx(k, EMISSION + c)];
-        }
+        let own = layout::rgb(x, k, EMISSION);
+        layout::set_rgb(x, k, EMISSION_GROUND, own);
+        layout::set_rgb(x, k, EMISSION_ZENITH, own);
     }
     Split { up: splittable.up, gradient: split.clone(), split }
 }
@@ -204,7 +203,7 @@ pub(super) fn test(
                 pix.len()
             ),
         )?;
-        let half = |at: usize| -> [f64; 3] { std::array::from_fn(|c| x_all[idx(k, at + c)]) };
+        let half = |at: usize| layout::rgb(&x_all, k, at);
         let fitted = format!(
             "split at the horizon ({:.0} % of its emission upward), the sky half {:.4?} at the horizon and {:.4?} at \
              the zenith, the ground half {:.4?}",
@@ -276,12 +275,10 @@ pub(super) fn test(
 /// the one sky radiance of the same flux ([`tracer::params::flat_sky`], m the mean elevation sine of its sky,
 /// `tracer::scene::sky_elevations`), its zenith entries cleared.
 fn flatten(x: &mut [f64], k: usize, m: f64) {
-    let v = |x: &[f64], at: usize| glam::DVec3::new(x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]);
-    let flat = tracer::params::flat_sky(v(x, EMISSION), v(x, EMISSION_ZENITH), m);
-    for c in 0..3 {
-        x[idx(k, EMISSION + c)] = flat[c];
-        x[idx(k, EMISSION_ZENITH + c)] = 0.0;
-    }
+    let v = |at: usize| glam::DVec3::from(layout::rgb(x, k, at));
+    let flat = tracer::params::flat_sky(v(EMISSION), v(EMISSION_ZENITH), m);
+    layout::set_rgb(x, k, EMISSION, flat.to_array());
+    layout::set_rgb(x, k, EMISSION_ZENITH, [0.0; 3]);
 }
 
 /// Object k's emission joined from its two halves into the one radiance of the same flux
@@ -291,17 +288,16 @@ fn join(x: &mut [f64], k: usize, u: f64, graded: Option<f64>) {
     if let Some(m) = graded {
         flatten(x, k, m);
     }
-    let half = |at: usize| glam::DVec3::new(x[idx(k, at)], x[idx(k, at + 1)], x[idx(k, at + 2)]);
+    let half = |at: usize| glam::DVec3::from(layout::rgb(x, k, at));
     let joined = tracer::params::joined_halves(half(EMISSION), half(EMISSION_GROUND), u);
-    for c in 0..3 {
-        x[idx(k, EMISSION + c)] = joined[c];
-        x[idx(k, EMISSION_GROUND + c)] = 0.0;
-    }
+    layout::set_rgb(x, k, EMISSION, joined.to_array());
+    layout::set_rgb(x, k, EMISSION_GROUND, [0.0; 3]);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::layout::idx;
 
     #[test]
     fn the_cameras_mean_up_is_world_up_and_cancelling_axes_give_none() {

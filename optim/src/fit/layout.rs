@@ -31,10 +31,22 @@ pub fn idx(k: usize, p: usize) -> usize {
     PER_OBJECT * k + p
 }
 
+/// The three channels of object k's entry that starts at `at` (`BASE_COLOR`, `EMISSION`, `EMISSION_GROUND`,
+/// `EMISSION_ZENITH`) in `x`.
+#[must_use]
+pub fn rgb(x: &[f64], k: usize, at: usize) -> [f64; 3] {
+    std::array::from_fn(|c| x[idx(k, at + c)])
+}
+
+/// Sets the three channels of object k's entry that starts at `at` in `x` to `v`.
+pub fn set_rgb(x: &mut [f64], k: usize, at: usize, v: [f64; 3]) {
+    x[idx(k, at)..idx(k, at) + 3].copy_from_slice(&v);
+}
+
 /// Object k's base colour in `x`.
 #[must_use]
 pub fn base_color(x: &[f64], k: usize) -> [f64; 3] {
-    std::array::from_fn(|c| x[idx(k, BASE_COLOR + c)])
+    rgb(x, k, BASE_COLOR)
 }
 
 /// Copies object `k`'s material — base colour, roughness, metallic and specular, the entries `BASE_COLOR` to
