@@ -176,7 +176,15 @@ pub(super) fn test(
         rows.sort_by(|&a, &b| rank(a).total_cmp(&rank(b)).then(a.cmp(&b)));
         rows.truncate(budget);
         let pix: Vec<PixelRef> = rows.iter().map(|&j| test[j].pixel).collect();
-        let gain_over = |other: &tracer::Params, key: u64, label: String| -> Result<(f64, f64), FitError> {
+        // The relative L1 gain and paired t of the model with every kept split graded over `other`, the renders
+        // shown in the progress as the `which` test of this emitter.
+        let gain_over = |other: &tracer::Params, key: u64, which: &str| -> Result<(f64, f64), FitError> {
+            let label = format!(
+                "model selection: {which}, emitter {}/{} ({} pixels), block",
+                n + 1,
+                candidates.len(),
+                pix.len()
+            );
             let (a, b) = paired_renders(ctx, (other, &split_all), &pix, s.holdout_spp, key, progress, &label)?;
             let d: Vec<f64> = rows
                 .iter()
@@ -193,16 +201,7 @@ pub(super) fn test(
         let mut x_k = x_all.clone();
         join(&mut x_k, k, share[k], all.graded(k).then_some(sky[k]));
         let but_k = Split { up, split: others(&all.split, k), gradient: others(&all.gradient, k) };
-        let (rel, t) = gain_over(
-            &but_k.params(&x_k),
-            key::SELECT_HORIZON_TEST,
-            format!(
-                "model selection: horizon test, emitter {}/{} ({} pixels), block",
-                n + 1,
-                candidates.len(),
-                pix.len()
-            ),
-        )?;
+        let (rel, t) = gain_over(&but_k.params(&x_k), key::SELECT_HORIZON_TEST, "horizon test")?;
         let half = |at: usize| layout::rgb(&x_all, k, at);
         let fitted = format!(
             "split at the horizon ({:.0} % of its emission upward), the sky half {:.4?} at the horizon and {:.4?} at \
@@ -235,16 +234,7 @@ pub(super) fn test(
         let mut x_f = x_all.clone();
         flatten(&mut x_f, k, sky[k]);
         let flat_k = Split { gradient: others(&all.gradient, k), ..all.clone() };
-        let (rel, t) = gain_over(
-            &flat_k.params(&x_f),
-            key::SELECT_SKY_TEST,
-            format!(
-                "model selection: sky gradient test, emitter {}/{} ({} pixels), block",
-                n + 1,
-                candidates.len(),
-                pix.len()
-            ),
-        )?;
+        let (rel, t) = gain_over(&flat_k.params(&x_f), key::SELECT_SKY_TEST, "sky gradient test")?;
         if t > T_KEEP && rel > MIN_GAIN {
             kept.gradient[k] = true;
             why[k].push(format!(

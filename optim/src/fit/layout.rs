@@ -38,6 +38,11 @@ pub fn rgb(x: &[f64], k: usize, at: usize) -> [f64; 3] {
     std::array::from_fn(|c| x[idx(k, at + c)])
 }
 
+/// [`rgb`] in the tracer's precision (f32).
+fn rgb_f32(x: &[f64], k: usize, at: usize) -> Vec3 {
+    Vec3::from(rgb(x, k, at).map(|v| v as f32))
+}
+
 /// Sets the three channels of object k's entry that starts at `at` in `x` to `v`.
 pub fn set_rgb(x: &mut [f64], k: usize, at: usize, v: [f64; 3]) {
     x[idx(k, at)..idx(k, at) + 3].copy_from_slice(&v);
@@ -135,11 +140,10 @@ impl Split {
     #[must_use]
     pub fn params(&self, x: &[f64]) -> tracer::Params {
         let mut p = to_params(x);
-        let v =
-            |k: usize, at: usize| Vec3::new(x[idx(k, at)] as f32, x[idx(k, at + 1)] as f32, x[idx(k, at + 2)] as f32);
         let n = p.emission.len();
-        p.split_at_horizon(self.up, (0..n).filter(|&k| self.of(k)).map(|k| (k as u32, v(k, EMISSION_GROUND))));
-        p.add_zeniths((0..n).filter(|&k| self.graded(k)).map(|k| (k as u32, v(k, EMISSION_ZENITH))));
+        let entry = |k: usize, at: usize| (k as u32, rgb_f32(x, k, at));
+        p.split_at_horizon(self.up, (0..n).filter(|&k| self.of(k)).map(|k| entry(k, EMISSION_GROUND)));
+        p.add_zeniths((0..n).filter(|&k| self.graded(k)).map(|k| entry(k, EMISSION_ZENITH)));
         p
     }
 }
@@ -149,17 +153,16 @@ impl Split {
 #[must_use]
 pub fn to_params(x: &[f64]) -> tracer::Params {
     let n = x.len() / PER_OBJECT;
-    let v3 = |k: usize, p: usize| Vec3::new(x[idx(k, p)] as f32, x[idx(k, p + 1)] as f32, x[idx(k, p + 2)] as f32);
     tracer::Params {
         materials: (0..n)
             .map(|k| tracer::Material {
-                base_color: v3(k, BASE_COLOR),
+                base_color: rgb_f32(x, k, BASE_COLOR),
                 roughness: x[idx(k, ROUGHNESS)] as f32,
                 metallic: x[idx(k, METALLIC)] as f32,
                 specular: x[idx(k, SPECULAR)] as f32,
             })
             .collect(),
-        emission: (0..n).map(|k| v3(k, EMISSION)).collect(),
+        emission: (0..n).map(|k| rgb_f32(x, k, EMISSION)).collect(),
         horizon: tracer::params::Horizon::default(),
     }
 }
