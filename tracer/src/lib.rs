@@ -55,7 +55,7 @@ pub use camera::Camera;
 pub use error::TracerError;
 pub use lights::LightSampler;
 pub use params::{EmissionProfile, Grads, MaterialGradSum, Params, TracerSettings};
-pub use scene::{Scene, SceneInput};
+pub use scene::{HorizonGeometry, Scene, SceneInput};
 
 /// The floating-point type of radiance, geometry and parameters inside the tracer.
 pub type Float = f32;

@@ -174,13 +174,13 @@ impl Params {
         }
     }
 
-    /// Per emitter slot (one per entry of `upward`, the slots' [`crate::scene::upward_shares`], and of `sky`,
-    /// their [`crate::scene::sky_elevations`]): the radiance of a uniform emitter that sends the same flux —
-    /// [`joined_halves`] of its [`Params::flat_sky`] and ground half for a split slot, its emission for the
-    /// others (exact for the uniform profile).
+    /// Per emitter slot (one per entry of `g`, the slots' [`crate::scene::HorizonGeometry`]): the radiance of a
+    /// uniform emitter that sends the same flux — [`joined_halves`] of its [`Params::flat_sky`] and ground half
+    /// for a split slot, its emission for the others (exact for the uniform profile).
     #[must_use]
-    pub fn uniform_emission(&self, upward: &[f64], sky: &[f64]) -> Vec<Vec3> {
-        upward
+    pub fn uniform_emission(&self, g: &crate::scene::HorizonGeometry) -> Vec<Vec3> {
+        let sky = &g.sky;
+        g.upward
             .iter()
             .enumerate()
             .map(|(slot, &u)| {
@@ -197,7 +197,7 @@ impl Params {
     }
 
     /// The one sky radiance of the same flux as emitter slot `slot`'s sky half, whose directions carry a sky of
-    /// mean elevation sine `m` ([`crate::scene::sky_elevations`]): [`flat_sky`] of its horizon and zenith
+    /// mean elevation sine `m` ([`crate::scene::HorizonGeometry::sky`]): [`flat_sky`] of its horizon and zenith
     /// entries when its sky has a gradient, else its own entry.
     #[must_use]
     pub fn flat_sky(&self, slot: u32, m: f64) -> DVec3 {

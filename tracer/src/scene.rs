@@ -187,20 +187,12 @@ impl Scene {
         self.tri_data[tri as usize].ng
     }
 
-    /// Per emitter slot: the share of its cosine-weighted emission leaving upward ([`upward_shares`]).
+    /// Per emitter slot: what a split at the horizon `up` needs of its geometry ([`horizon_geometry`]).
     #[must_use]
-    pub fn upward_shares(&self, up: Vec3) -> Vec<f64> {
+    pub fn horizon_geometry(&self, up: Vec3) -> HorizonGeometry {
         let tris = (0..self.tri_data.len() as u32)
             .map(|t| (self.emitter_of(t), f64::from(self.area(t)), self.geometric_normal(t)));
-        upward_shares(up, self.emitter_slots(), tris)
-    }
-
-    /// Per emitter slot: the mean elevation sine of the sky its downward half carries ([`sky_elevations`]).
-    #[must_use]
-    pub fn sky_elevations(&self, up: Vec3) -> Vec<f64> {
-        let tris = (0..self.tri_data.len() as u32)
-            .map(|t| (self.emitter_of(t), f64::from(self.area(t)), self.geometric_normal(t)));
-        sky_elevations(up, self.emitter_slots(), tris)
+        horizon_geometry(up, self.emitter_slots(), tris)
     }
 
     #[inline]
@@ -424,40 +416,46 @@ fn guided_partition_point<T>(entries: &[T], cdf: impl Fn(&T) -> f64, guide: &[u3
     }
 }
 
-/// Per emitter slot (`slots` of them): the share of its cosine-weighted emission that leaves upward, i.e.
-/// the area-weighted mean of (1 + n·up)/2 over its triangles, given as (slot, area, front-face normal)
-/// (the share of a cosine-weighted hemisphere on the far side of a plane through its centre is
-/// (1 + cos θ)/2, θ between the normal and the plane's normal). 0 for a slot without area.
-#[must_use]
-pub fn upward_shares(up: Vec3, slots: usize, triangles: impl Iterator<Item = (u32, f64, Vec3)>) -> Vec<f64> {
-    let (mut area, mut upward) = (vec![0.0f64; slots], vec![0.0f64; slots]);
-    for (slot, a, n) in triangles {
-        if let Some(total) = area.get_mut(slot as usize) {
-            *total += a;
-            upward[slot as usize] += a * (1.0 + f64::from(n.dot(up))) / 2.0;
-        }
-    }
-    area.iter().zip(&upward).map(|(&a, &u)| if a > 0.0 { (u / a).clamp(0.0, 1.0) } else { 0.0 }).collect()
+/// Per emitter slot, what a split at the horizon needs of its geometry ([`horizon_geometry`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct HorizonGeometry {
+    /// The share of its cosine-weighted emission that leaves upward (what splitting it at the horizon
+    /// divides): the area-weighted mean of (1 + n·up)/2 over its triangles (the share of a cosine-weighted
+    /// hemisphere on the far side of a plane through its centre is (1 + cos θ)/2, θ between the normal and the
+    /// plane's normal); 0 for a slot without area.
+    pub upward: Vec<f64>,
+    /// The mean of s = −ω·up, the sine of the elevation of the sky that a direction ω leaving it downward
+    /// carries, over its downward cosine-weighted emission (what makes a graded sky flat at the same flux):
+    /// 4/(3π) ≈ 0.424 for a vertical emitter, 2/3 for one facing down, 0 for a slot that sends nothing down. A
+    /// triangle at c = n·up sends ∫ (−ω·up)₊ (ω·n)₊ dω = (2/3)((π − γ)·cos γ + sin γ) with cos γ = −c (the
+    /// integral of two clamped cosines whose axes are γ apart), out of the π·(1 − c)/2 of its downward
+    /// cosine-weighted emission.
+    pub sky: Vec<f64>,
 }
 
-/// Per emitter slot (`slots` of them), given its triangles as (slot, area, front-face normal): the mean of
-/// s = −ω·up, the sine of the elevation of the sky that a direction ω leaving it downward carries, over its
-/// downward cosine-weighted emission (4/(3π) ≈ 0.424 for a vertical emitter, 2/3 for one facing down; 0 for a
-/// slot that sends nothing down). A triangle at c = n·up sends ∫ (−ω·up)₊ (ω·n)₊ dω = (2/3)((π − γ)·cos γ +
-/// sin γ) with cos γ = −c (the integral of two clamped cosines whose axes are γ apart), out of the
-/// π·(1 − c)/2 of its downward cosine-weighted emission.
+/// [`HorizonGeometry`] of `slots` emitter slots, in one pass over their triangles given as (slot, area,
+/// front-face normal); triangles of other slots are skipped.
 #[must_use]
-pub fn sky_elevations(up: Vec3, slots: usize, triangles: impl Iterator<Item = (u32, f64, Vec3)>) -> Vec<f64> {
+pub fn horizon_geometry(up: Vec3, slots: usize, triangles: impl Iterator<Item = (u32, f64, Vec3)>) -> HorizonGeometry {
+    let (mut area, mut upward) = (vec![0.0f64; slots], vec![0.0f64; slots]);
     let (mut moment, mut down) = (vec![0.0f64; slots], vec![0.0f64; slots]);
     for (slot, a, n) in triangles {
-        let Some(m) = moment.get_mut(slot as usize) else { continue };
+        let s = slot as usize;
+        if s >= slots {
+            continue;
+        }
+        area[s] += a;
+        upward[s] += a * (1.0 + f64::from(n.dot(up))) / 2.0;
         let cos_g = (-f64::from(n.dot(up))).clamp(-1.0, 1.0);
         let g = cos_g.acos();
-        *m += a * (2.0 / 3.0) * ((std::f64::consts::PI - g) * cos_g + g.sin());
-        down[slot as usize] += a * std::f64::consts::PI * (1.0 + cos_g) / 2.0;
+        moment[s] += a * (2.0 / 3.0) * ((std::f64::consts::PI - g) * cos_g + g.sin());
+        down[s] += a * std::f64::consts::PI * (1.0 + cos_g) / 2.0;
     }
-    // 1e-12 of π per unit area: a slot whose downward half is that small sends no sky worth a mean.
-    moment.iter().zip(&down).map(|(&m, &d)| if d > 1e-12 { (m / d).clamp(0.0, 1.0) } else { 0.0 }).collect()
+    HorizonGeometry {
+        upward: area.iter().zip(&upward).map(|(&a, &u)| if a > 0.0 { (u / a).clamp(0.0, 1.0) } else { 0.0 }).collect(),
+        // 1e-12 of π per unit area: a slot whose downward half is that small sends no sky worth a mean.
+        sky: moment.iter().zip(&down).map(|(&m, &d)| if d > 1e-12 { (m / d).clamp(0.0, 1.0) } else { 0.0 }).collect(),
+    }
 }
 
 #[cfg(test)]
@@ -467,7 +465,7 @@ mod tests {
     /// The closed form against a Monte Carlo estimate of the mean elevation sine over the downward
     /// cosine-weighted directions, for normals from facing down to facing up.
     #[test]
-    fn sky_elevations_match_a_monte_carlo_estimate() {
+    fn sky_elevation_means_match_a_monte_carlo_estimate() {
         let mut state = 0x2545_f491_4f6c_dd1d_u64;
         let mut next = || {
             state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
@@ -490,11 +488,11 @@ mod tests {
                 }
             }
             let want = sum / f64::from(count);
-            let got = sky_elevations(Vec3::Z, 1, std::iter::once((0, 2.0, n.as_vec3())))[0];
+            let got = horizon_geometry(Vec3::Z, 1, std::iter::once((0, 2.0, n.as_vec3()))).sky[0];
             // 400 k draws: the estimate's standard error is below 1e-3.
             assert!((got - want).abs() < 4e-3, "c = {c}: {got} against {want}");
         }
-        let vertical = sky_elevations(Vec3::Z, 1, std::iter::once((0, 1.0, Vec3::X)))[0];
+        let vertical = horizon_geometry(Vec3::Z, 1, std::iter::once((0, 1.0, Vec3::X))).sky[0];
         assert!((vertical - 4.0 / (3.0 * std::f64::consts::PI)).abs() < 1e-6);
     }
 

@@ -239,8 +239,7 @@ fn check_hidden(built: &BuiltScene, path: &Path) -> Result<(), SynthError> {
 /// as `materials.json` writes it: both halves, and the uniform emission of the same flux).
 #[must_use]
 pub fn ground_truth_json(built: &BuiltScene) -> serde_json::Value {
-    let uniform =
-        built.params.uniform_emission(&built.scene.upward_shares(Vec3::Z), &built.scene.sky_elevations(Vec3::Z));
+    let uniform = built.params.uniform_emission(&built.scene.horizon_geometry(Vec3::Z));
     let mut tris = vec![0usize; built.desc.objects.len()];
     for &o in &built.mesh.object_of_tri {
         tris[o as usize] += 1;

@@ -12,7 +12,7 @@
 //! 1. **Up** is the cameras' mean up axis ([`world_up`]): photos are taken upright, tilted up and down
 //!    about as often, so the mean points up whatever the scan's own axes.
 //! 2. **Candidates** are the kept emitters with at least [`MIN_SIDE`] of their cosine-weighted emission on
-//!    each side of the horizon (`tracer::Scene::upward_shares`; a ceiling panel sends all of it down and has
+//!    each side of the horizon (`tracer::HorizonGeometry::upward`; a ceiling panel sends all of it down and has
 //!    nothing to split) that the photos see from both sides of it: each half is fitted where it is seen.
 //! 3. **Fit** (by model selection, `super::select`): every candidate split, its sky half graded from the
 //!    horizon to the zenith (`tracer::params::Horizon`; the photos see a window's sky within about 20° of the
@@ -76,7 +76,7 @@ pub(super) fn sided(ctx: &Ctx<'_>) -> Vec<bool> {
     let Some(up) = split_up(ctx) else {
         return vec![false; ctx.scene.emitter_slots()];
     };
-    let share = ctx.scene.upward_shares(up);
+    let share = ctx.scene.horizon_geometry(up).upward;
     (0..share.len()).map(|k| is_candidate(&share, k)).collect()
 }
 
@@ -110,7 +110,7 @@ pub(super) fn splittable(ctx: &Ctx<'_>, sets: &PixelSets, wanted: &[bool]) -> Sp
     let Some(up) = split_up(ctx) else {
         return Split::flat(Vec3::ZERO, vec![false; k_count]);
     };
-    let share = ctx.scene.upward_shares(up);
+    let share = ctx.scene.horizon_geometry(up).upward;
     let wanted: Vec<bool> = (0..k_count).map(|k| wanted[k] && is_candidate(&share, k)).collect();
     let seen = seen_from_each_side(ctx, sets, up, &wanted);
     Split::flat(up, (0..k_count).map(|k| wanted[k] && seen[k]).collect())
@@ -152,8 +152,7 @@ pub(super) fn test(
 ) -> Result<Split, FitError> {
     let all = ctx.split;
     let (up, k_count) = (all.up, all.split.len());
-    let share = ctx.scene.upward_shares(up);
-    let sky = ctx.scene.sky_elevations(up);
+    let tracer::HorizonGeometry { upward: share, sky } = ctx.scene.horizon_geometry(up);
     let candidates: Vec<usize> = (0..k_count).filter(|&k| all.of(k)).collect();
     let x_all = x.to_vec();
 
@@ -263,7 +262,7 @@ pub(super) fn test(
 
 /// Object k's sky half made flat: its horizon and zenith radiances (`EMISSION`, `EMISSION_ZENITH`) replaced by
 /// the one sky radiance of the same flux ([`tracer::params::flat_sky`], m the mean elevation sine of its sky,
-/// `tracer::scene::sky_elevations`), its zenith entries cleared.
+/// `tracer::HorizonGeometry::sky`), its zenith entries cleared.
 fn flatten(x: &mut [f64], k: usize, m: f64) {
     let v = |at: usize| glam::DVec3::from(layout::rgb(x, k, at));
     let flat = tracer::params::flat_sky(v(EMISSION), v(EMISSION_ZENITH), m);

@@ -412,11 +412,7 @@ impl TriangleState {
     /// its emission unless it is split at the horizon (`tracer::Params::uniform_emission`).
     #[must_use]
     pub fn uniform_emission(&self, objects: usize) -> Vec<Vec3> {
-        let (up, faces) = (self.horizon.up, || self.faces());
-        self.params().uniform_emission(
-            &tracer::scene::upward_shares(up, objects, faces()),
-            &tracer::scene::sky_elevations(up, objects, faces()),
-        )
+        self.params().uniform_emission(&tracer::scene::horizon_geometry(self.horizon.up, objects, self.faces()))
     }
 
     /// Per triangle: its object, its area and its front face's unit normal as the tracer's scene builds it.

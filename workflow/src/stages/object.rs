@@ -199,7 +199,7 @@ pub fn run(ctx: &StageContext<'_>) -> Result<Vec<PathBuf>, StageError> {
     // of the same flux (the materials.json schema).
     let horizon = &outcome.params.horizon;
     let uniform = if horizon.ground.iter().any(Option::is_some) {
-        outcome.params.uniform_emission(&scene.upward_shares(horizon.up), &scene.sky_elevations(horizon.up))
+        outcome.params.uniform_emission(&scene.horizon_geometry(horizon.up))
     } else {
         outcome.params.emission.clone()
     };
