@@ -417,7 +417,7 @@ fn guided_partition_point<T>(entries: &[T], cdf: impl Fn(&T) -> f64, guide: &[u3
 }
 
 /// Per emitter slot, what a split at the horizon needs of its geometry ([`horizon_geometry`]).
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct HorizonGeometry {
     /// The share of its cosine-weighted emission that leaves upward (what splitting it at the horizon
     /// divides): the area-weighted mean of (1 + n·up)/2 over its triangles (the share of a cosine-weighted
@@ -444,9 +444,10 @@ pub fn horizon_geometry(up: Vec3, slots: usize, triangles: impl Iterator<Item = 
         if s >= slots {
             continue;
         }
+        let c = f64::from(n.dot(up));
         area[s] += a;
-        upward[s] += a * (1.0 + f64::from(n.dot(up))) / 2.0;
-        let cos_g = (-f64::from(n.dot(up))).clamp(-1.0, 1.0);
+        upward[s] += a * (1.0 + c) / 2.0;
+        let cos_g = (-c).clamp(-1.0, 1.0);
         let g = cos_g.acos();
         moment[s] += a * (2.0 / 3.0) * ((std::f64::consts::PI - g) * cos_g + g.sin());
         down[s] += a * std::f64::consts::PI * (1.0 + cos_g) / 2.0;
