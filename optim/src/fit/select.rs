@@ -501,12 +501,24 @@ impl LobeAlternative {
 /// The verdict of [`glimpse_test`].
 struct Glimpse {
     pixels: usize,
-    /// Which pixels: "held-out" or "training and held-out".
-    kind: &'static str,
+    /// The mean over the tested pixels of their photo radiance summed over the channels (the L1 from 0).
+    mean_radiance: f64,
+    /// The object's best base colour without emission on the tested pixels (the diffuse alternative).
+    base_without: [f64; 3],
+    /// Whether the pixels are its own held-out pixels alone (at least [`solve::MIN_PIXELS`] of them), not a
+    /// glimpse of a few training and held-out pixels.
+    held_only: bool,
     /// Relative gain and t of the emission against the best base colour without it, and against the best lobe
     /// without it (searched only when the first passes).
     against_diffuse: (f64, f64),
     against_lobe: Option<(f64, f64)>,
+}
+
+impl Glimpse {
+    /// Which pixels, for a `why`: "held-out" or "training and held-out".
+    fn kind(&self) -> &'static str {
+        if self.held_only { "held-out" } else { "training and held-out" }
+    }
 }
 
 /// The emission test of an object on the pixels where it is seen, for an emitter that the test on the pixels
@@ -517,7 +529,9 @@ struct Glimpse {
 /// were fitted with the emission, so each alternative is fitted on the test pixels too, which if anything
 /// favours it: the best base colour without emission, and the best lobe without emission (dielectric or
 /// metal, which can mirror a light into a small object's pixels). Returns `None` below
-/// [`MIN_GLIMPSE_PIXELS`], and for an emission too faint to reach [`MIN_OWN_GAIN`] on any pixel.
+/// [`MIN_GLIMPSE_PIXELS`], and for an emission too faint to reach [`MIN_OWN_GAIN`] on any pixel. An emission
+/// this test keeps on held-out pixels alone must still carry [`MIN_OWN_SHARE`] of their radiance once the scene
+/// is re-fitted.
 #[allow(clippy::too_many_arguments)]
 fn glimpse_test(
     ctx: &Ctx<'_>,
@@ -562,17 +576,17 @@ fn glimpse_test(
     let n_full = own.len();
     let (mut pred, mut without_fitted, mut col) = (Vec::new(), Vec::new(), Vec::new());
     let mut n = FIRST_LOOK.min(n_full);
-    let (against_diffuse, pred) = loop {
+    let (against_diffuse, pred, delta) = loop {
         let new_px: Vec<PixelRef> = own[pred.len()..n].iter().map(|t| t.pixel).collect();
         pred.extend(model.on(ctx, s, &new_px)?);
         without_fitted.extend(emission_test_arm(ctx, s, &no_k, &new_px)?);
         col.extend(base_color_column(ctx, s, params, k, &new_px)?);
         let mut without = without_fitted.clone();
-        refit_on_column(x, k, &col, &tgt[..n], &vec![1.0; n], &mut without);
+        let delta = refit_on_column(x, k, &col, &tgt[..n], &vec![1.0; n], &mut without);
         let d: Vec<f64> = (0..n).map(|j| l1(tgt[j], without[j]) - l1(tgt[j], pred[j])).collect();
         let (gain, se) = linear::mean_se(&d);
         if n == n_full || cannot_pass(gain, se, n, n_full, MIN_OWN_GAIN * mean) {
-            break ((gain / mean, linear::t_statistic(gain, se)), pred);
+            break ((gain / mean, linear::t_statistic(gain, se)), pred, delta);
         }
         n = (2 * n).min(n_full);
     };
@@ -592,8 +606,9 @@ fn glimpse_test(
     } else {
         None
     };
-    let kind = if held_only { "held-out" } else { "training and held-out" };
-    Ok(Some(Glimpse { pixels: own.len(), kind, against_diffuse, against_lobe }))
+    let base = layout::base_color(x, k);
+    let base_without = std::array::from_fn(|c| (base[c] + delta[c]).clamp(0.0, 1.0));
+    Ok(Some(Glimpse { pixels: own.len(), mean_radiance: mean, base_without, held_only, against_diffuse, against_lobe }))
 }
 
 /// The smallest relative gain on an object's own pixels for which [`glimpse_test`] keeps its emission: 5 % of
@@ -604,9 +619,31 @@ fn glimpse_test(
 /// object's fit by less than 5 % is not told apart from such a misfit.
 const MIN_OWN_GAIN: f64 = 0.05;
 
+/// The smallest share of its own pixels' radiance that an emission kept by [`glimpse_test`] on its own held-out
+/// pixels alone must carry once the scene is re-fitted around the chosen models: its emission summed over the
+/// channels over the mean of those pixels' radiance summed the same way. A lamp's own pixels show mostly its
+/// emission: the seen lamps and window panes of the corpus house and Daylight Room carry 0.78–3.5 of it (more
+/// than 1 where pixel centres straddle a lamp's silhouette). An emission that the pixels it lights do not need
+/// and that is a fraction of what its own, well-seen pixels show stands in for a reflection the model misses: a
+/// metal box of the corpus house kept the lamps' reflection as an emission of 0.50 of the radiance of its 363
+/// held-out pixels, and a ceiling beside a window one of 0.44 on 2048 (docs/scale/README.md, "A share rule for
+/// emissions kept by their own pixels"). The threshold sits between the largest false share and the smallest
+/// lamp's, near their geometric mean (0.62). A glimpse of a few training and held-out pixels is not held to it:
+/// the share of a lamp fitted on 4–49 pixel centres is too noisy to judge (Modern Hall's lamps: 0.60–1.58).
+const MIN_OWN_SHARE: f64 = 0.6;
+
 /// Whether an emission's (relative gain, t) on the pixels that see it is significant and large enough.
 fn glimpse_gain((gain, t): (f64, f64)) -> bool {
     t > T_KEEP && gain > MIN_OWN_GAIN
+}
+
+/// Object k's emission summed over the channels over `mean_radiance` (a mean photo radiance summed the same
+/// way, [`Glimpse::mean_radiance`]); for an emitter split at the horizon, the mean of its halves' sums (a sky half
+/// graded with elevation counts at the horizon).
+fn own_share(x: &[f64], split: &Split, k: usize, mean_radiance: f64) -> f64 {
+    let sum = |at: usize| layout::rgb(x, k, at).iter().sum::<f64>();
+    let emitted = if split.of(k) { 0.5 * (sum(EMISSION) + sum(EMISSION_GROUND)) } else { sum(EMISSION) };
+    emitted / mean_radiance.max(f64::MIN_POSITIVE)
 }
 
 /// Decides every object's model; returns the final parameters, the decisions and the emitters split at the
@@ -798,6 +835,9 @@ pub fn choose_models(
     let splittable = horizon::splittable(ctx, sets, &emitting);
     let mut kept_split: Vec<Option<([f64; 3], [f64; 3])>> = vec![None; k_count];
     let mut material_refit = false;
+    // Per emitter kept by its own held-out pixels alone: the mean radiance of the pixels that kept it and its
+    // best base colour without emission there (for the share rule after the re-fit, [`MIN_OWN_SHARE`]).
+    let mut glimpse_kept_by: Vec<Option<(f64, [f64; 3])>> = vec![None; k_count];
     let mut tested = 0;
     for k in 0..k_count {
         let e = [x[idx(k, EMISSION)], x[idx(k, EMISSION + 1)], x[idx(k, EMISSION + 2)]];
@@ -1043,13 +1083,16 @@ pub fn choose_models(
             .and_then(|g| g.against_lobe.filter(|&l| glimpse_gain(l)).map(|l| (g, l)));
         if let Some((g, lobe)) = glimpse_kept {
             emits[k] = true;
+            if g.held_only {
+                glimpse_kept_by[k] = Some((g.mean_radiance, g.base_without));
+            }
             why[k].push(format!(
                 "emission kept: the {} {} pixels that see it are fitted better with it than with its best base \
                  colour without emission (L1 {:.1} % lower, t = {:.1}) and than with its best lobe without emission \
                  ({:.1} % lower, t = {:.1}); the pixels its light reaches alone would not keep it ({:+.4} %, t = \
                  {t:.1})",
                 g.pixels,
-                g.kind,
+                g.kind(),
                 100.0 * g.against_diffuse.0,
                 g.against_diffuse.1,
                 100.0 * lobe.0,
@@ -1141,7 +1184,7 @@ pub fn choose_models(
                     "; on the {} {} pixels that see it, it beats its best base colour without emission by {:.1} % (t = \
                      {:.1}){lobe} (each needs t > {T_KEEP} and > {:.0} %)",
                     g.pixels,
-                    g.kind,
+                    g.kind(),
                     100.0 * g.against_diffuse.0,
                     g.against_diffuse.1,
                     100.0 * MIN_OWN_GAIN
@@ -1233,6 +1276,39 @@ pub fn choose_models(
             }
         }
     }
+    // The share rule ([`MIN_OWN_SHARE`]) on the emissions that their own held-out pixels alone kept, as the
+    // re-fit left them: the emission the test started from is larger than the one the scene keeps around it. A dropped one
+    // takes the best base colour without emission that its own pixels gave; the rest of the scene keeps its fit,
+    // since the pixels its light reaches did not need the emission (a second re-fit of the whole scene for it
+    // took a lamp no photo sees from 35 % to 100 % off in blue on the corpus house: docs/scale/README.md, "A
+    // share rule for emissions kept by their own pixels").
+    let mut all = all;
+    for k in 0..k_count {
+        let Some((mean_radiance, base_without)) = glimpse_kept_by[k].filter(|_| emits[k]) else { continue };
+        let share = own_share(&x, &all, k, mean_radiance);
+        if share >= MIN_OWN_SHARE {
+            why[k].push(format!(
+                "after the re-fit its emission is {share:.2} of the mean radiance of the pixels that kept it (needs \
+                 at least {MIN_OWN_SHARE})"
+            ));
+            continue;
+        }
+        let e = layout::rgb(&x, k, EMISSION);
+        why[k].push(format!(
+            "emission {e:.4?} dropped after the re-fit: it is {share:.2} of the mean radiance of the pixels that kept \
+             it (an emission that only its own pixels keep must carry at least {MIN_OWN_SHARE} of it; less stands in \
+             for a reflection the model misses); base colour {base_without:.3?}, the best without emission there"
+        ));
+        emits[k] = false;
+        for at in [EMISSION, EMISSION_GROUND, EMISSION_ZENITH] {
+            layout::set_rgb(&mut x, k, at, [0.0; 3]);
+        }
+        layout::set_rgb(&mut x, k, BASE_COLOR, base_without);
+        if let Some(split) = all.split.get_mut(k) {
+            *split = false;
+        }
+    }
+    let ctx_all = Ctx { split: &all, ..*ctx };
     let split = if all.is_empty() {
         all
     } else {
@@ -1321,6 +1397,22 @@ mod tests {
         assert_eq!(x[idx(0, ROUGHNESS)], layout::START_ROUGHNESS);
         assert_eq!((x[idx(1, ROUGHNESS)], x[idx(2, ROUGHNESS)]), (0.62, 0.62));
         assert!(why[0][0].contains("exactly Lambert") && why[1].is_empty() && why[2].is_empty(), "{why:?}");
+    }
+
+    #[test]
+    fn an_emissions_share_of_its_pixels_counts_both_halves_of_a_split_emitter() {
+        let mut x = layout::initial(2);
+        for k in 0..2 {
+            layout::set_rgb(&mut x, k, EMISSION, [0.3, 0.2, 0.1]);
+            layout::set_rgb(&mut x, k, EMISSION_GROUND, [0.9, 0.6, 0.3]);
+        }
+        let split = Split::flat(glam::Vec3::Z, vec![false, true]);
+        // Uniform: Σe = 0.6 against pixels of mean Σ radiance 1.2; the ground entry is not its emission.
+        assert!((own_share(&x, &split, 0, 1.2) - 0.5).abs() < 1e-12);
+        // Split: the mean of the halves' sums, (0.6 + 1.8) / 2 = 1.2.
+        assert!((own_share(&x, &split, 1, 1.2) - 1.0).abs() < 1e-12);
+        // Pixels without radiance: no division by zero, and any emission passes.
+        assert!(own_share(&x, &split, 0, 0.0) > MIN_OWN_SHARE);
     }
 
     #[test]
