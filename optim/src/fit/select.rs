@@ -1277,11 +1277,11 @@ pub fn choose_models(
         }
     }
     // The share rule ([`MIN_OWN_SHARE`]) on the emissions that their own held-out pixels alone kept, as the
-    // re-fit left them: the emission the test started from is larger than the one the scene keeps around it. A dropped one
-    // takes the best base colour without emission that its own pixels gave; the rest of the scene keeps its fit,
-    // since the pixels its light reaches did not need the emission (a second re-fit of the whole scene for it
-    // took a lamp no photo sees from 35 % to 100 % off in blue on the corpus house: docs/scale/README.md, "A
-    // share rule for emissions kept by their own pixels").
+    // re-fit left them: the emission the test started from is larger than the one the scene keeps around it. A
+    // dropped one takes the best base colour without emission that its own pixels gave; the rest of the scene
+    // keeps its fit, since the pixels its light reaches did not need the emission (a second re-fit of the whole
+    // scene for it took a lamp no photo sees from 35 % to 100 % off in blue on the corpus house:
+    // docs/scale/README.md, "A share rule for emissions kept by their own pixels").
     let mut all = all;
     for k in 0..k_count {
         let Some((mean_radiance, base_without)) = glimpse_kept_by[k].filter(|_| emits[k]) else { continue };
