@@ -482,10 +482,16 @@ impl LobeAlternative {
     /// against a lobe inside its domain it decides only against the emission. Against a [`saturated`] lobe it
     /// also decides for it ([`Self::wins_squared_against_white`]).
     fn emission_beats_it(&self, k: usize) -> bool {
-        let base = layout::base_color(&self.x, k);
-        let ((rel, t), (rel_q, t_q)) = (self.emission_against_lobe, self.emission_against_lobe_squared);
+        let (rel_q, t_q) = self.emission_against_lobe_squared;
         let lobe_wins_squared = -t_q > T_KEEP && -rel_q > MIN_GAIN;
-        (emission_beats(Some(base), t, rel) || self.wins_squared_against_white(k)) && !lobe_wins_squared
+        (self.passes_on_l1(k) || self.wins_squared_against_white(k)) && !lobe_wins_squared
+    }
+
+    /// Whether the emission beats the lobe on the L1 ([`emission_beats`], the lower bar where the lobe's base
+    /// colour is white).
+    fn passes_on_l1(&self, k: usize) -> bool {
+        let (rel, t) = self.emission_against_lobe;
+        emission_beats(Some(layout::base_color(&self.x, k)), t, rel)
     }
 
     /// Whether the emission beats a lobe whose base colour is [`saturated`] on the unbiased squared error (t >
@@ -1080,10 +1086,7 @@ pub fn choose_models(
                 format!("; against its best lobe without emission {} on its {} own pixels", a.figures(), own_rows.len())
             });
             // Kept against a white lobe by the squared error, the L1 not passing even at the lower bar.
-            let by_squared = lobe.as_ref().is_some_and(|a| {
-                let (rel_l, t_l) = a.emission_against_lobe;
-                a.wins_squared_against_white(k) && !emission_beats(Some(layout::base_color(&a.x, k)), t_l, rel_l)
-            });
+            let by_squared = lobe.as_ref().is_some_and(|a| a.wins_squared_against_white(k) && !a.passes_on_l1(k));
             if by_squared {
                 note.push_str(
                     "; its best lobe without emission has a base colour at the top of its domain (white), and the \
