@@ -356,8 +356,10 @@ fn triangle_section(
 
 /// The run's per-object result when the `triangle` stage wrote one: each object's base colour, roughness,
 /// metallic and specular are the area-weighted means of its triangles' ([`optim::triangle::TriangleState::object_means`]),
-/// its emission (and horizon halves) the per-triangle stage's, its triangle count the final mesh's; its model,
-/// `why` and `constrained` stay the object stage's decisions. So `materials.json` agrees with the exported mesh,
+/// its emission (and horizon halves) the per-triangle stage's, its triangle count the final mesh's; its `why` and
+/// `constrained` stay the object stage's decisions, and so does its model unless the per-triangle stage's lobe
+/// family look changed whether it has a lobe ([`lobe_model`]: then the model says what the object now is, and
+/// `why` says where that came from). So `materials.json` agrees with the exported mesh,
 /// and its base colours rest on every photo pixel the per-triangle stage fitted: on the 1280×1024 corpus house
 /// the object-stage base colours are 0.071 off the truth (mean L1 over 179 objects), these 0.058
 /// (docs/scale/README.md, "Per-object results from the per-triangle stage"). An object whose id the scan does
@@ -380,6 +382,18 @@ fn per_triangle_summary(
                 o.roughness = m.roughness;
                 o.metallic = m.metallic;
                 o.specular = m.specular;
+                if let Some(model) = lobe_model(&o) {
+                    let note = format!(
+                        "the per-triangle stage's lobe family look made it {model} (metallic {:.2}, specular {:.2}, \
+                         roughness {:.2}; the triangle stage's round log has the test)",
+                        o.metallic, o.specular, o.roughness
+                    );
+                    o.why = Some(match o.why.take() {
+                        Some(why) if !why.is_empty() => format!("{why}; {note}"),
+                        _ => note,
+                    });
+                    o.model = model.to_owned();
+                }
             }
             o.triangles = counts[k];
             o.emission = uniform[k].to_array();
@@ -388,6 +402,24 @@ fn per_triangle_summary(
         })
         .collect();
     crate::materials::MaterialsFile { objects, ..object }
+}
+
+/// The model of a constrained object without emission whose parameters `o` no longer match its object-stage
+/// model: `specular` where its per-triangle means have a lobe (metallic or specular strength above 0) and the model
+/// says `diffuse`, `diffuse` where they have none and it says `specular`; `None` where they agree, and for emitters
+/// and unconstrained objects (the per-triangle stage keeps their per-object materials). The per-triangle stage's
+/// lobe family look switches an object's family after the object stage has named it: on the 160×128 corpus house
+/// it made two diffuse objects metals, which `materials.json` still called `diffuse`.
+fn lobe_model(o: &crate::materials::ObjectMaterial) -> Option<&'static str> {
+    if !o.is_constrained() {
+        return None;
+    }
+    let lobe = o.metallic > 0.0 || o.specular > 0.0;
+    match (o.model.as_str(), lobe) {
+        ("diffuse", true) => Some("specular"),
+        ("specular", false) => Some("diffuse"),
+        _ => None,
+    }
 }
 
 /// Runs the stage.
@@ -612,6 +644,58 @@ mod tests {
         let h = o4.horizon.expect("split emitter keeps its halves");
         assert_eq!((h.up, h.sky, h.ground), ([0.0, 0.0, 1.0], [3.0, 2.0, 1.0], [0.5, 0.4, 0.3]));
         assert_eq!(out.objects[1], file.objects[1], "an object the scan does not list is kept as it was");
+    }
+
+    #[test]
+    fn the_summary_names_an_object_by_the_lobe_family_its_triangles_ended_in() {
+        use crate::materials::{MATERIALS_FORMAT, MaterialsFile};
+        use glam::Vec3;
+        let m = |metallic: f32, specular: f32| tracer::Material {
+            base_color: Vec3::splat(0.4),
+            roughness: 0.45,
+            metallic,
+            specular,
+        };
+        // Four objects of one triangle each: ids 1 and 2 were diffuse in the object stage, 3 and 4 specular; the
+        // per-triangle stage's look made 1 a metal and 3 a Lambert surface, and left 2 and 4 as they were.
+        let st = optim::triangle::TriangleState {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            normals: None,
+            triangles: vec![[0, 1, 2]; 4],
+            face_object: vec![0, 1, 2, 3],
+            materials: vec![m(1.0, 0.5), m(0.0, 0.0), m(0.0, 0.0), m(0.0, 0.5)],
+            emission: vec![Vec3::ZERO; 4],
+            horizon: tracer::params::Horizon { up: Vec3::Z, ground: vec![None; 4], zenith: Vec::new() },
+            rounds_done: 1,
+            log: Vec::new(),
+        };
+        let file = MaterialsFile {
+            format: MATERIALS_FORMAT.into(),
+            emission_profile: tracer::EmissionProfile::Uniform,
+            objects: vec![
+                object_material(1, "diffuse", Some(true)),
+                object_material(2, "diffuse", Some(true)),
+                object_material(3, "specular", Some(true)),
+                object_material(4, "specular", Some(true)),
+            ],
+        };
+        let out = per_triangle_summary(file, &st, &[1, 2, 3, 4]);
+        let models: Vec<&str> = out.objects.iter().map(|o| o.model.as_str()).collect();
+        assert_eq!(models, ["specular", "diffuse", "diffuse", "specular"]);
+        let why1 = out.objects[0].why.as_deref().unwrap_or_default();
+        assert!(
+            why1.starts_with("why 1; the per-triangle stage's lobe family look made it specular (metallic 1.00"),
+            "{why1}"
+        );
+        assert_eq!(out.objects[1].why.as_deref(), Some("why 2"), "an object whose family stayed keeps its why");
+        assert!(out.objects[2].why.as_deref().unwrap_or_default().contains("made it diffuse"));
+        // An unconstrained object or an emitter is named as the object stage named it, whatever its values.
+        let mut o = object_material(5, "diffuse", Some(false));
+        o.metallic = 1.0;
+        assert_eq!(lobe_model(&o), None);
+        o.constrained = Some(true);
+        o.model = "diffuse+emission".into();
+        assert_eq!(lobe_model(&o), None);
     }
 
     /// One object of a `materials.json` as the fit writes it (base colour 0.1, roughness 0.3, a `why`).
