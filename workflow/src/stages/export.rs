@@ -405,7 +405,7 @@ fn per_triangle_summary(
 }
 
 /// The model of a constrained object without emission whose parameters `o` no longer match its object-stage
-/// model: `specular` where its per-triangle means have a lobe (metallic or specular strength above 0) and the model
+/// model: `specular` where its per-triangle means have a lobe (not [`tracer::Material::is_lambert`]) and the model
 /// says `diffuse`, `diffuse` where they have none and it says `specular`; `None` where they agree, and for emitters
 /// and unconstrained objects (the per-triangle stage keeps their per-object materials). The per-triangle stage's
 /// lobe family look switches an object's family after the object stage has named it: on the 160×128 corpus house
@@ -414,8 +414,7 @@ fn lobe_model(o: &crate::materials::ObjectMaterial) -> Option<&'static str> {
     if !o.is_constrained() {
         return None;
     }
-    let lobe = o.metallic > 0.0 || o.specular > 0.0;
-    match (o.model.as_str(), lobe) {
+    match (o.model.as_str(), !o.material().is_lambert()) {
         ("diffuse", true) => Some("specular"),
         ("specular", false) => Some("diffuse"),
         _ => None,
