@@ -169,7 +169,7 @@ pub fn html(data: &ReportData) -> String {
         let _ = writeln!(
             s,
             "<tr class=\"data\"><td>{}</td><td class=\"l\">{}</td><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{r:.3} {g:.3} {b:.3}</td>\
-             <td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{}</td><td>{er:.4} {eg:.4} {eb:.4}</td></tr>\n\
+             <td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{}</td><td>{er:.4} {eg:.4} {eb:.4}</td></tr>\n\
              <tr><td></td><td class=\"l why\" colspan=\"10\">{}</td></tr>",
             o.id,
             escape(&o.label),
@@ -177,7 +177,7 @@ pub fn html(data: &ReportData) -> String {
             // Values no photo constrains are flagged, not presented as estimates.
             if !o.is_constrained() { format!("{} (unconstrained)", escape(&o.model)) } else { escape(&o.model) },
             swatch(o.base_color, 1.0),
-            o.roughness,
+            roughness_cell(o),
             o.metallic,
             o.specular,
             swatch(o.emission, e_scale),
@@ -258,6 +258,17 @@ pub fn html(data: &ReportData) -> String {
     s
 }
 
+/// The roughness column's cell: the value, or a dash for a Lambert surface (metallic and specular 0), which has
+/// no specular lobe for a roughness to shape. `materials.json` still holds the fit's value (the tracer's default);
+/// the report does not present it as an estimate.
+fn roughness_cell(o: &ObjectMaterial) -> String {
+    if o.material().is_lambert() {
+        "<span title=\"no specular lobe: roughness has no effect\">–</span>".to_owned()
+    } else {
+        format!("{:.3}", o.roughness)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -270,6 +281,36 @@ mod tests {
         assert_eq!(relative_error(&photo, &render, &[0, 0]), None);
     }
 
+    /// A diffuse object (id 1, 2 triangles, grey, roughness 0.5 as the fit leaves a Lambert surface's).
+    fn diffuse_object(label: &str) -> ObjectMaterial {
+        ObjectMaterial {
+            id: 1,
+            label: label.into(),
+            triangles: 2,
+            base_color: [0.5; 3],
+            roughness: 0.5,
+            metallic: 0.0,
+            specular: 0.0,
+            emission: [0.0; 3],
+            model: "diffuse".into(),
+            why: None,
+            constrained: None,
+            horizon: None,
+        }
+    }
+
+    #[test]
+    fn a_lambert_surface_shows_no_roughness_and_a_lobed_one_its_value() {
+        let mut o = diffuse_object("box");
+        assert!(roughness_cell(&o).contains('–') && !roughness_cell(&o).contains("0.500"));
+        o.specular = 0.5;
+        o.roughness = 0.3;
+        assert_eq!(roughness_cell(&o), "0.300");
+        o.specular = 0.0;
+        o.metallic = 1.0;
+        assert_eq!(roughness_cell(&o), "0.300");
+    }
+
     #[test]
     fn html_is_self_contained_and_escapes_labels() {
         let img = RgbImage { width: 1, height: 1, rgb: vec![0.5, 0.5, 0.5] };
@@ -279,18 +320,9 @@ mod tests {
             views: vec![ViewPanel { name: "v0".into(), photo: img.clone(), render: img, mask: vec![1] }],
             loss: vec![Series { name: "loss".into(), points: vec![(0.0, 1.0), (1.0, 0.5)] }],
             objects: vec![ObjectMaterial {
-                id: 1,
-                label: "<script>".into(),
-                triangles: 2,
                 base_color: [1.0, 0.0, 0.0],
-                roughness: 0.5,
-                metallic: 0.0,
-                specular: 0.0,
-                emission: [0.0; 3],
-                model: "diffuse".into(),
-                why: None,
                 constrained: Some(false),
-                horizon: None,
+                ..diffuse_object("<script>")
             }],
             why: vec!["because".into()],
             notes: vec![],
@@ -313,6 +345,9 @@ mod tests {
         assert!(!page.contains("<script>"));
         assert!(page.contains("&lt;script&gt;"));
         assert!(page.contains("diffuse (unconstrained)"));
+        assert!(
+            page.contains("<td><span title=\"no specular lobe: roughness has no effect\">–</span></td><td>0.000</td>")
+        );
         // 3 view images and the atlas.
         assert_eq!(page.matches("data:image/png;base64,").count(), 4);
         assert!(page.contains("<h2>Per-triangle stage</h2>"));
