@@ -228,6 +228,26 @@ impl MaterialsFile {
     }
 }
 
+/// One object of a `materials.json` as the fit writes it, for the crate's tests: label `o{id}`, one triangle, base
+/// colour 0.1, roughness 0.3, no lobe, no emission, `why` = `why {id}`.
+#[cfg(test)]
+pub(crate) fn test_object(id: i64, model: &str, constrained: Option<bool>) -> ObjectMaterial {
+    ObjectMaterial {
+        id,
+        label: format!("o{id}"),
+        triangles: 1,
+        base_color: [0.1; 3],
+        roughness: 0.3,
+        metallic: 0.0,
+        specular: 0.0,
+        emission: [0.0; 3],
+        model: model.into(),
+        why: Some(format!("why {id}")),
+        constrained,
+        horizon: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -281,27 +281,10 @@ mod tests {
         assert_eq!(relative_error(&photo, &render, &[0, 0]), None);
     }
 
-    /// A diffuse object (id 1, 2 triangles, grey, roughness 0.5 as the fit leaves a Lambert surface's).
-    fn diffuse_object(label: &str) -> ObjectMaterial {
-        ObjectMaterial {
-            id: 1,
-            label: label.into(),
-            triangles: 2,
-            base_color: [0.5; 3],
-            roughness: 0.5,
-            metallic: 0.0,
-            specular: 0.0,
-            emission: [0.0; 3],
-            model: "diffuse".into(),
-            why: None,
-            constrained: None,
-            horizon: None,
-        }
-    }
-
     #[test]
     fn a_lambert_surface_shows_no_roughness_and_a_lobed_one_its_value() {
-        let mut o = diffuse_object("box");
+        let mut o = crate::materials::test_object(1, "diffuse", None);
+        o.roughness = 0.5;
         assert!(roughness_cell(&o).contains('–') && !roughness_cell(&o).contains("0.500"));
         o.specular = 0.5;
         o.roughness = 0.3;
@@ -320,9 +303,9 @@ mod tests {
             views: vec![ViewPanel { name: "v0".into(), photo: img.clone(), render: img, mask: vec![1] }],
             loss: vec![Series { name: "loss".into(), points: vec![(0.0, 1.0), (1.0, 0.5)] }],
             objects: vec![ObjectMaterial {
+                label: "<script>".into(),
                 base_color: [1.0, 0.0, 0.0],
-                constrained: Some(false),
-                ..diffuse_object("<script>")
+                ..crate::materials::test_object(1, "diffuse", Some(false))
             }],
             why: vec!["because".into()],
             notes: vec![],

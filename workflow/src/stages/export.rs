@@ -621,7 +621,7 @@ mod tests {
             rounds_done: 1,
             log: Vec::new(),
         };
-        let object = |id: i64, model: &str| object_material(id, model, Some(true));
+        let object = |id: i64, model: &str| crate::materials::test_object(id, model, Some(true));
         // The file lists the objects in another order than the scan, and one the scan does not have.
         let file = MaterialsFile {
             format: MATERIALS_FORMAT.into(),
@@ -672,10 +672,10 @@ mod tests {
             format: MATERIALS_FORMAT.into(),
             emission_profile: tracer::EmissionProfile::Uniform,
             objects: vec![
-                object_material(1, "diffuse", Some(true)),
-                object_material(2, "diffuse", Some(true)),
-                object_material(3, "specular", Some(true)),
-                object_material(4, "specular", Some(true)),
+                crate::materials::test_object(1, "diffuse", Some(true)),
+                crate::materials::test_object(2, "diffuse", Some(true)),
+                crate::materials::test_object(3, "specular", Some(true)),
+                crate::materials::test_object(4, "specular", Some(true)),
             ],
         };
         let out = per_triangle_summary(file, &st, &[1, 2, 3, 4]);
@@ -689,30 +689,12 @@ mod tests {
         assert_eq!(out.objects[1].why.as_deref(), Some("why 2"), "an object whose family stayed keeps its why");
         assert!(out.objects[2].why.as_deref().unwrap_or_default().contains("made it diffuse"));
         // An unconstrained object or an emitter is named as the object stage named it, whatever its values.
-        let mut o = object_material(5, "diffuse", Some(false));
+        let mut o = crate::materials::test_object(5, "diffuse", Some(false));
         o.metallic = 1.0;
         assert_eq!(lobe_model(&o), None);
         o.constrained = Some(true);
         o.model = "diffuse+emission".into();
         assert_eq!(lobe_model(&o), None);
-    }
-
-    /// One object of a `materials.json` as the fit writes it (base colour 0.1, roughness 0.3, a `why`).
-    fn object_material(id: i64, model: &str, constrained: Option<bool>) -> crate::materials::ObjectMaterial {
-        crate::materials::ObjectMaterial {
-            id,
-            label: format!("o{id}"),
-            triangles: 1,
-            base_color: [0.1; 3],
-            roughness: 0.3,
-            metallic: 0.0,
-            specular: 0.0,
-            emission: [0.0; 3],
-            model: model.into(),
-            why: Some(format!("why {id}")),
-            constrained,
-            horizon: None,
-        }
     }
 
     #[test]
@@ -722,10 +704,10 @@ mod tests {
             format: MATERIALS_FORMAT.into(),
             emission_profile: tracer::EmissionProfile::Uniform,
             objects: vec![
-                object_material(1, "diffuse", Some(true)),
-                object_material(2, "diffuse", Some(false)),
-                object_material(3, "diffuse", None),
-                object_material(4, "specular", Some(true)),
+                crate::materials::test_object(1, "diffuse", Some(true)),
+                crate::materials::test_object(2, "diffuse", Some(false)),
+                crate::materials::test_object(3, "diffuse", None),
+                crate::materials::test_object(4, "specular", Some(true)),
             ],
         };
         // Id 5 is not in the file: nothing says it is diffuse. A file written by hand (no `constrained`)
