@@ -85,8 +85,10 @@ pub(super) fn second_look(
     progress: &dyn crate::Progress,
 ) -> Result<(), FitError> {
     let k_count = free.len();
-    let first_metals: Vec<bool> = (0..k_count).map(|k| free[k] && !emits[k] && x[idx(k, METALLIC)] >= 0.5).collect();
-    let candidates: Vec<usize> = (0..k_count).filter(|&k| free[k] && !emits[k] && x[idx(k, METALLIC)] < 0.5).collect();
+    let first_metals: Vec<bool> =
+        (0..k_count).map(|k| free[k] && !emits[k] && layout::is_metal(x[idx(k, METALLIC)])).collect();
+    let candidates: Vec<usize> =
+        (0..k_count).filter(|&k| free[k] && !emits[k] && !layout::is_metal(x[idx(k, METALLIC)])).collect();
     progress.phase("model selection: metal probe, object", candidates.len() as u64, 0);
     let spp = roughness::profile_spp(s.solve_spp);
     let (mut xt, mut xd) = (x.to_vec(), x.to_vec());
@@ -145,7 +147,7 @@ pub(super) fn second_look(
     }
     recheck_metals(ctx, s, sets, lobe_test, mean_target, x, &first_metals, why, progress)?;
     let lobes: Vec<bool> =
-        (0..k_count).map(|k| free[k] && !emits[k] && glossy[k] && x[idx(k, METALLIC)] < 0.5).collect();
+        (0..k_count).map(|k| free[k] && !emits[k] && glossy[k] && !layout::is_metal(x[idx(k, METALLIC)])).collect();
     recheck_lobes(ctx, s, sets, lobe_test, mean_target, x, &lobes, glossy, why, progress)
 }
 

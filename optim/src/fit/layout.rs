@@ -24,6 +24,17 @@ pub const EMISSION_ZENITH: usize = 12;
 /// upper limit; 1e6 only keeps a diverging run finite (HDR pixels of 1e5 are the largest the fit must handle).
 pub const EMISSION_MAX: f64 = 1e6;
 
+/// The metallic from which an object is a metal, its base colour a reflectance at normal incidence rather than
+/// a diffuse albedo: the middle of the range, so that a blend belongs to the family it nearly is.
+pub const METAL_FROM: f64 = 0.5;
+
+/// Whether metallic `m` makes a metal ([`METAL_FROM`]).
+#[inline]
+#[must_use]
+pub fn is_metal(m: f64) -> bool {
+    m >= METAL_FROM
+}
+
 /// Index of parameter `p` of object `k`.
 #[inline]
 #[must_use]

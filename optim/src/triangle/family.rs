@@ -111,7 +111,7 @@ pub fn is_blend(metallic: f32) -> bool {
 /// at 0.47 became a metal); docs/optim/design-measurements.md, "A blend held against the family it nearly is".
 #[must_use]
 pub fn blend_family_is_metal(metallic: f32) -> bool {
-    metallic >= 0.5
+    layout::is_metal(f64::from(metallic))
 }
 
 /// The random-number stream of a blend's dielectric part among an object's fits: 0 is its own family's, 1–3 the
@@ -235,7 +235,7 @@ pub fn family_look(
         let mut families = vec![(0, mean)];
         if blend && !blend_family_is_metal(mean.metallic) {
             families.push((DIELECTRIC_PART_STREAM, tracer::Material { metallic: 0.0, ..mean }));
-        } else if blend || mean.metallic < 0.5 {
+        } else if blend || !layout::is_metal(f64::from(mean.metallic)) {
             families.extend((1..).zip(probes()));
         } else {
             let lambert = tracer::Material {
@@ -290,7 +290,7 @@ pub fn family_look(
         let signed = |(g, t): (f64, f64)| (sign * g, sign * t);
         let look = Look {
             object: o,
-            metal_roughness: alt.first().filter(|m| m.metallic >= 0.5).map(|m| m.roughness),
+            metal_roughness: alt.first().filter(|m| layout::is_metal(f64::from(m.metallic))).map(|m| m.roughness),
             base_color,
             fit_pixels: fit.len(),
             test_pixels: verdict.d.len(),
