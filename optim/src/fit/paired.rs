@@ -13,6 +13,10 @@ use crate::progress::check_stop;
 use crate::streams::{self, draw};
 use tracer::PixelRef;
 
+/// The squared error's t at which it confirms an alternative that a test kept on the L1 (one-sided 5 %, the
+/// conventional level of a confirmation: the discovery's level is [`T_KEEP`]'s).
+pub(crate) const T_CONFIRM: f64 = 1.645;
+
 /// A term is kept when the paired t-statistic of its held-out improvement exceeds 3 (one-sided p ≈ 0.1 %:
 /// with tens of objects, a spurious acceptance is unlikely)…
 pub(crate) const T_KEEP: f64 = 3.0;
@@ -255,6 +259,13 @@ impl Verdict {
         (pays(self.gain(mean_target)) && !refuted) || squared.is_some_and(pays)
     }
 
+    /// Whether the squared error shows the alternative's gain at t > [`T_CONFIRM`]: what a pass on the L1
+    /// alone lacks where a rougher, richer model fits the bulk of an object's pixels better and the rest worse.
+    /// False without squared errors.
+    pub(crate) fn confirmed_by_squared_error(&self, mean_target: f64) -> bool {
+        self.squared.as_ref().is_some_and(|q| q.gain(mean_target).1 > T_CONFIRM)
+    }
+
     /// The test's figures, for a `why`: "L1 by +x % (t = a)" and, with squared errors, "and its RMS error by
     /// +y % (t = b)", the gains as percentages of the mean radiance.
     pub(crate) fn figures(&self, mean_target: f64) -> String {
@@ -476,6 +487,34 @@ mod tests {
         assert!(!v.passes(mean_target));
         // Without the squared error (a plain L1 test) the same differences pass.
         assert!(Verdict { squared: None, ..v }.passes(mean_target));
+    }
+
+    #[test]
+    fn only_a_gain_the_squared_error_shows_beyond_its_noise_confirms_a_pass() {
+        let mean_target = 1.5; // 0.5 per channel, summed over the three
+        // The model 0.05 off the photo on every pixel; alternatives off by `near` on most pixels and by `far`
+        // on every 20th (noise-free renders, so the differences carry no noise but the pixels' own spread).
+        let n = 4096;
+        let rows: Vec<usize> = (0..n).collect();
+        let i_d: Vec<[glam::Vec3; 2]> = (0..n).map(|_| [glam::Vec3::splat(0.55); 2]).collect();
+        let verdict = |near: f32, far: f32| {
+            let off = |j: usize| if j % 20 == 0 { far } else { near };
+            let i_t: Vec<[glam::Vec3; 2]> = (0..n).map(|j| [glam::Vec3::splat(0.5 + off(j)); 2]).collect();
+            let (d, squared) = differences(Statistic::L1OrSquaredError, |_| [0.5; 3], &rows, &i_d, &i_t);
+            Verdict { d, squared, n_full: n, stopped: None }
+        };
+        // Better everywhere: the L1 passes and the squared error confirms it.
+        let better = verdict(0.02, 0.04);
+        assert!(better.passes(mean_target) && better.confirmed_by_squared_error(mean_target));
+        // 0.02 off on 95 % of the pixels and 0.21 on the rest: a lower L1 (0.030 against 0.05 per channel) and
+        // about the model's squared error (0.0026 against 0.0025, t ≈ −0.6). It passes on the L1 and is not
+        // confirmed.
+        let bulk = verdict(0.02, 0.21);
+        let (_, t) = bulk.squared.as_ref().unwrap().gain(mean_target);
+        assert!(t <= T_CONFIRM && t > -T_KEEP, "squared error: {t}");
+        assert!(bulk.passes(mean_target) && !bulk.confirmed_by_squared_error(mean_target));
+        // Without squared errors nothing confirms.
+        assert!(!Verdict { squared: None, ..better }.confirmed_by_squared_error(mean_target));
     }
 
     #[test]
