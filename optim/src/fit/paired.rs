@@ -467,19 +467,24 @@ mod tests {
         assert!(!Verdict { stopped: Some(Stop::CannotPass), ..v }.passes(mean_target));
     }
 
-    #[test]
-    fn a_pass_on_the_l1_that_the_squared_error_refutes_does_not_count() {
-        let mean_target = 1.5; // 0.5 per channel, summed over the three
-        // Noise-free renders (both estimates equal): the model 0.05 off the photo on every pixel; the
-        // alternative 0.02 off on 97 % of them and 0.6 off on every 33rd. Its L1 is lower (0.11 against 0.15
-        // summed over the channels), its squared error far higher (0.034 against 0.0075 per pixel).
+    /// The verdict on 4096 pixels of photo 0.5 (mean radiance 1.5 summed over the channels) between a model
+    /// 0.05 off on every pixel and an alternative `off(j)` off on pixel j, both rendered without noise (both
+    /// estimates equal), so the differences carry only the pixels' own spread.
+    fn verdict_against_a_uniform_misfit(off: impl Fn(usize) -> f32) -> Verdict {
         let n = 4096;
         let rows: Vec<usize> = (0..n).collect();
         let i_d: Vec<[glam::Vec3; 2]> = (0..n).map(|_| [glam::Vec3::splat(0.55); 2]).collect();
-        let off = |j: usize| if j % 33 == 0 { 0.6 } else { 0.02 };
         let i_t: Vec<[glam::Vec3; 2]> = (0..n).map(|j| [glam::Vec3::splat(0.5 + off(j)); 2]).collect();
         let (d, squared) = differences(Statistic::L1OrSquaredError, |_| [0.5; 3], &rows, &i_d, &i_t);
-        let v = Verdict { d, squared, n_full: n, stopped: None };
+        Verdict { d, squared, n_full: n, stopped: None }
+    }
+
+    #[test]
+    fn a_pass_on_the_l1_that_the_squared_error_refutes_does_not_count() {
+        let mean_target = 1.5; // 0.5 per channel, summed over the three
+        // The alternative 0.02 off on 97 % of the pixels and 0.6 off on every 33rd. Its L1 is lower (0.11 against
+        // 0.15 summed over the channels), its squared error far higher (0.034 against 0.0075 per pixel).
+        let v = verdict_against_a_uniform_misfit(|j| if j % 33 == 0 { 0.6 } else { 0.02 });
         let (l1_gain, l1_t) = v.gain(mean_target);
         let (_, t) = v.squared.as_ref().unwrap().gain(mean_target);
         assert!(l1_t > T_KEEP && l1_gain > MIN_GAIN, "L1: {l1_gain} {l1_t}");
@@ -492,17 +497,9 @@ mod tests {
     #[test]
     fn only_a_gain_the_squared_error_shows_beyond_its_noise_confirms_a_pass() {
         let mean_target = 1.5; // 0.5 per channel, summed over the three
-        // The model 0.05 off the photo on every pixel; alternatives off by `near` on most pixels and by `far`
-        // on every 20th (noise-free renders, so the differences carry no noise but the pixels' own spread).
-        let n = 4096;
-        let rows: Vec<usize> = (0..n).collect();
-        let i_d: Vec<[glam::Vec3; 2]> = (0..n).map(|_| [glam::Vec3::splat(0.55); 2]).collect();
-        let verdict = |near: f32, far: f32| {
-            let off = |j: usize| if j % 20 == 0 { far } else { near };
-            let i_t: Vec<[glam::Vec3; 2]> = (0..n).map(|j| [glam::Vec3::splat(0.5 + off(j)); 2]).collect();
-            let (d, squared) = differences(Statistic::L1OrSquaredError, |_| [0.5; 3], &rows, &i_d, &i_t);
-            Verdict { d, squared, n_full: n, stopped: None }
-        };
+        // Alternatives off by `near` on most pixels and by `far` on every 20th.
+        let verdict =
+            |near: f32, far: f32| verdict_against_a_uniform_misfit(move |j| if j % 20 == 0 { far } else { near });
         // Better everywhere: the L1 passes and the squared error confirms it.
         let better = verdict(0.02, 0.04);
         assert!(better.passes(mean_target) && better.confirmed_by_squared_error(mean_target));
