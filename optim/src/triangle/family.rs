@@ -240,11 +240,13 @@ pub fn family_look(
         // Each fit draws the random numbers of its alternative (its stream: 0 for the own family, then
         // [`DIELECTRIC_PART_STREAM`] or the probes' and the Lambert surface's), wherever it sits in the list.
         let blend = is_blend(mean.metallic);
+        // The family its metallic puts it in (a blend's: the pure family it nearly is).
+        let metal = blend_family_is_metal(mean.metallic);
         let probes = || METAL_PROBES.iter().map(|&r| tracer::Material { roughness: r, metallic: 1.0, ..mean });
         let mut families = vec![(0, mean)];
-        if blend && !blend_family_is_metal(mean.metallic) {
+        if blend && !metal {
             families.push((DIELECTRIC_PART_STREAM, tracer::Material { metallic: 0.0, ..mean }));
-        } else if blend || !layout::is_metal(f64::from(mean.metallic)) {
+        } else if blend || !metal {
             families.extend((1..).zip(probes()));
         } else {
             let lambert = tracer::Material {
@@ -296,7 +298,7 @@ pub fn family_look(
         let base_color = alt.first().map_or(mean.base_color, |m| m.base_color);
         // A dielectric's switch to a metal carries the burden on both statistics: the metal must also lower
         // the squared error ([`Verdict::confirmed_by_squared_error`]).
-        let to_metal = !blend && !layout::is_metal(f64::from(mean.metallic));
+        let to_metal = !blend && !metal;
         let confirmed = !to_metal || verdict.confirmed_by_squared_error(mean_target);
         let passes = verdict.passes(mean_target) != blend && (blend || !clamped_white(base_color)) && confirmed;
         let sign = if blend { -1.0 } else { 1.0 };
