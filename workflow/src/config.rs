@@ -173,7 +173,8 @@ fn default_calibration_points() -> u32 {
 /// corpus's house (docs/scale/README.md, "Photos larger than the budget"): at 3.7 M prepared pixels the whole
 /// run takes 25 minutes, at 26 M (the budget 2²⁵) the object stage alone peaked at 2.8 GB and each of the
 /// per-triangle stage's fit steps took 4 minutes, which puts the run well past the 45 minutes a house is
-/// allowed. The budget is the knob between the photos' detail and the run's cost.
+/// allowed; at 17.7 M (320×256) the object stage alone took 750 s, past the 10 minutes it is allowed (same
+/// file, "A budget of paths per render"). The budget is the knob between the photos' detail and the run's cost.
 fn default_max_pixels() -> u64 {
     1 << 23
 }
@@ -309,6 +310,9 @@ pub struct TriangleConfig {
     pub paths_per_triangle: u32,
     /// … as long as each object's pixels keep at least this many paths in all (up to `spp` each).
     pub paths_per_object: u32,
+    /// Budget: paths of each render of a round's passes over all its pixels: where the round's pixels at
+    /// `spp` each would take more, the passes take ⌊this / pixels⌋ per pixel (at least 1); 0 = no bound.
+    pub paths_per_step: u64,
     /// Adam iterations per fit after the closed-form steps (batches of `object.batch_pixels` pixels,
     /// `object.n_value`/`object.n_grad` paths, the object stage's loss); 0 = closed form only.
     pub adam_iterations: u32,
@@ -365,6 +369,11 @@ impl Default for TriangleConfig {
             // (docs/optim/design-measurements.md, "Paths per triangle in the ratio steps").
             paths_per_triangle: 8192,
             paths_per_object: 262_144,
+            // 16 paths per pixel at the 10.5 M pixels the 320×256 house fits: albedo L1 0.0201 against 0.0196
+            // at 32 (two seeds), the per-triangle stage at 0.50–0.57 times the CPU (docs/scale/README.md, "A
+            // budget of paths per render"); rounds of up to 5.31 M pixels (the 160×128 house, the default scene)
+            // keep `spp`.
+            paths_per_step: 170_000_000,
             adam_iterations: 0,
             adam_lr: 0.01,
             smoothness: 0.1,

@@ -19,7 +19,10 @@
 //!   pixels that straddle two triangles and the interreflections between objects. R's noise in the update is
 //!   set by the paths the triangle gets in all, so a triangle's pixels are rendered at `spp` paths each, or at
 //!   fewer (at least 1) where they would take more than `paths_per_triangle`, as long as their object keeps
-//!   `paths_per_object` in all ([`ratio::paths_per_pixel`]). The ratios are combined with
+//!   `paths_per_object` in all ([`ratio::paths_per_pixel`]); where a round's pixels at `spp` each would take
+//!   more than `paths_per_step` paths in one render, its passes take fewer per pixel ([`ratio::round_spp`]),
+//!   so that a pass's cost stops growing with the photos (the renders of fixed-size samples, the fit check's
+//!   and the lobe family look's, keep `spp`). The ratios are combined with
 //!   the **smoothness regulariser** by solving `min Σ_t n_t (ρ_t − r_t)² + λ Σ_(t,u) (ρ_t − ρ_u)²` (n_t: the
 //!   triangle's pixels, pairs: triangles of one object sharing an edge, λ = `smoothness`) with Gauss–Seidel
 //!   sweeps: an unobserved triangle takes the mean of its neighbours, and a region nobody sees takes its
@@ -285,6 +288,9 @@ pub struct TriangleSettings {
     pub paths_per_triangle: u32,
     /// … but an object's pixels take at least this many paths in all (up to `spp` each).
     pub paths_per_object: u32,
+    /// Budget: paths of each render of a round's passes over all its pixels: where the round's pixels at
+    /// `spp` each would take more, its passes take fewer per pixel ([`ratio::round_spp`]); 0 = no bound.
+    pub paths_per_step: u64,
     /// Adam iterations per fit after the closed-form steps (batches of `object.batch_pixels` pixels,
     /// `object.n_value`/`object.n_grad` paths, the object stage's loss); 0 = closed form only.
     pub adam_iterations: u32,
@@ -518,6 +524,20 @@ fn collect_pixels(
     pix
 }
 
+/// Says in the log when a round's passes over its `pixels` pixels take fewer than `spp` paths each
+/// ([`ratio::round_spp`], which [`ratio::fit_pass`] applies).
+fn note_paths_per_step(cfg: &TriangleSettings, pixels: usize, round: u32, progress: &dyn crate::Progress) {
+    let spp = ratio::round_spp(cfg.spp, cfg.paths_per_step, pixels);
+    if spp < cfg.spp {
+        tracing::info!(round, pixels, spp, "paths per pixel lowered by the paths per step");
+        progress.note(&format!(
+            "[triangle] round {round}: {pixels} pixels at {spp} paths each instead of {} (triangle.paths_per_step \
+             = {})",
+            cfg.spp, cfg.paths_per_step
+        ));
+    }
+}
+
 /// Runs the remaining rounds of `state` (fit → split → … → fit). `on_round` receives the state after every
 /// round that ends with a split (a checkpoint); the returned state holds the final fit.
 pub fn run_rounds(
@@ -552,6 +572,7 @@ pub fn run_rounds(
         let started = std::time::Instant::now();
         let scene = state.scene()?;
         let pix = collect_pixels(inputs, &scene, &state, round, progress);
+        note_paths_per_step(cfg, pix.samples.len(), round, progress);
         let fitted = ratio::fit_round(inputs, &scene, &pix.samples, &mut state, round, progress)?;
         let mut rec = RoundRecord {
             round,
@@ -597,6 +618,7 @@ pub fn run_rounds(
             let (scene, pix) = if applied {
                 let scene = state.scene()?;
                 let pix = collect_pixels(inputs, &scene, &state, round, progress);
+                note_paths_per_step(cfg, pix.samples.len(), round, progress);
                 (scene, pix)
             } else {
                 (scene, pix)

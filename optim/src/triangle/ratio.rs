@@ -10,7 +10,7 @@ use glam::{DVec3, Vec3};
 use tracer::PixelRef;
 
 use super::pixels::TriSample;
-use super::{RoundInputs, TriangleError, TriangleState};
+use super::{RoundInputs, TriangleError, TriangleSettings, TriangleState};
 use crate::streams::key;
 
 /// A triangle's closed-form update uses only its interior pixels (footprint wholly on it) when it has at least
@@ -425,6 +425,12 @@ pub fn fit_pass(
     pass: u32,
     progress: &dyn crate::Progress,
 ) -> Result<Fitted, TriangleError> {
+    // The pass renders every pixel of the round: at most `paths_per_step` paths each time.
+    let settings = TriangleSettings {
+        spp: round_spp(inputs.settings.spp, inputs.settings.paths_per_step, samples.len()),
+        ..inputs.settings.clone()
+    };
+    let inputs = &RoundInputs { settings: &settings, ..*inputs };
     let cfg = inputs.settings;
     // Only objects that emit now may emit: the object stage's model decision (no emission) holds every other
     // object at 0. Emitters and unconstrained objects keep their materials (`fitted_triangles`).
@@ -547,6 +553,24 @@ pub fn paths_per_pixel(samples: &[TriSample], face_object: &[u32], objects: usiz
             (budget.per_triangle / n).max(budget.per_object.div_ceil(big_n)).clamp(1, spp)
         })
         .collect()
+}
+
+/// Paths per pixel of the renders of a round's passes ([`fit_pass`]) over its `pixels` pixels: `spp`, or
+/// ⌊`per_step` / pixels⌋ (at least 1) where `spp` each would take more than `per_step` paths in one render; a
+/// `per_step` of 0 bounds nothing. `pixels_per_triangle` bounds a round's pixels by its triangles, which on a
+/// house of 10⁵–10⁶ triangles smaller than that budget is no bound: every pixel of the photos is fitted, and
+/// each render's cost would grow with the photos' resolution. A triangle's value rests on the paths of all its
+/// pixels together, so where a round has more pixels each needs fewer paths for the same noise in it. The
+/// renders of fixed-size samples (the fit check's, the lobe family look's) do not grow with the photos and
+/// keep `spp` (docs/scale/README.md, "A budget of paths per render").
+#[must_use]
+pub fn round_spp(spp: u32, per_step: u64, pixels: usize) -> u32 {
+    let spp = spp.max(1);
+    if per_step == 0 || pixels == 0 {
+        return spp;
+    }
+    let each = per_step / pixels as u64;
+    u32::try_from(each).unwrap_or(u32::MAX).clamp(1, spp)
 }
 
 /// What bounds a ratio step's paths ([`paths_per_pixel`]): `triangle.spp`, `triangle.paths_per_triangle` and
@@ -688,6 +712,22 @@ pub(crate) fn ratio_steps(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_round_renders_at_most_its_paths_per_step_whatever_its_pixels() {
+        // Few pixels keep `spp`; a house's keep the budget (16 each at 10.5 M pixels and 1.7·10⁸ paths).
+        assert_eq!(round_spp(32, 170_000_000, 55_296), 32);
+        assert_eq!(round_spp(32, 170_000_000, 10_549_892), 16);
+        assert_eq!(round_spp(32, 0, 10_549_892), 32);
+        assert_eq!(round_spp(32, 170_000_000, 0), 32);
+        for pixels in [1usize, 1000, 5_312_500, 5_312_501, 10_549_892, 400_000_000] {
+            let spp = round_spp(32, 170_000_000, pixels);
+            assert!((1..=32).contains(&spp));
+            // Within the budget, or at the one path every pixel keeps; and never below it when more fit.
+            assert!(spp as u64 * pixels as u64 <= 170_000_000 || spp == 1, "{pixels}: {spp}");
+            assert!(spp == 32 || (spp as u64 + 1) * pixels as u64 > 170_000_000, "{pixels}: {spp}");
+        }
+    }
 
     #[test]
     fn a_triangle_with_many_pixels_takes_fewer_paths_each_within_its_budget() {

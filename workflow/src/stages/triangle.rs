@@ -90,6 +90,7 @@ impl From<&TriangleConfig> for TriangleSettings {
             pixels_per_triangle: c.pixels_per_triangle,
             paths_per_triangle: c.paths_per_triangle,
             paths_per_object: c.paths_per_object,
+            paths_per_step: c.paths_per_step,
             adam_iterations: c.adam_iterations,
             adam_lr: c.adam_lr,
             smoothness: c.smoothness,
