@@ -9,7 +9,7 @@ use super::pixels::{self, PixelSets};
 use super::prior::UnseenPrior;
 use super::samples::{self, SampleCounter};
 use super::settings::AdamLoss;
-use super::solve::{MIN_PIXELS, solve_options, step_samples};
+use super::solve::{self, MIN_PIXELS, solve_options, step_samples};
 use super::{
     FitError, FitInputs, FitMode, FitOutcome, FitState, IterationRecord, ObjectFitSettings, ObjectModel, select,
     step_check,
@@ -45,6 +45,7 @@ fn validate(inputs: &FitInputs<'_>) -> Result<(), FitError> {
     positive("n_grad", s.n_grad)?;
     positive("solve_pixels", s.solve_pixels)?;
     positive("solve_spp", s.solve_spp)?;
+    positive("interim_solve_spp", s.interim_solve_spp)?;
     positive("holdout_spp", s.holdout_spp)?;
     positive("holdout_pixels", s.holdout_pixels)?;
     if !(s.lr.is_finite() && s.lr > 0.0) {
@@ -212,7 +213,8 @@ pub fn fit_objects(
             let mut x = layout::initial(k_count);
             let opts = solve_options(s, Unknowns::Emission);
             let samples = step_samples(&sets, s, Unknowns::Emission, s.seed, key::SOLVE);
-            solve_step_pinned(&ctx, &mut x, &samples, s.solve_spp, key::SOLVE, &free, &no_emission, &opts)?;
+            let spp = solve::adam_solve_spp(s, 0);
+            solve_step_pinned(&ctx, &mut x, &samples, spp, key::SOLVE, &free, &no_emission, &opts)?;
             FitState {
                 iteration: 0,
                 adam: AdamState::new(x.len(), AdamConfig::default()),
@@ -254,7 +256,7 @@ pub fn fit_objects(
                     &ctx,
                     &mut state.params,
                     &samples,
-                    s.solve_spp,
+                    solve::adam_solve_spp(s, it),
                     key,
                     &free,
                     &no_emission,

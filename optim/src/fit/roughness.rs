@@ -85,8 +85,7 @@ pub(super) fn in_profile(seed: u64, t: &Sample) -> bool {
 /// Object k's pixels for a roughness search: its training pixels of the lobe-choosing half, at most
 /// [`PROFILE_PIXELS`] of them.
 pub(super) fn profile_samples(ctx: &Ctx<'_>, sets: &PixelSets, k: usize) -> Vec<Sample> {
-    let own: Vec<Sample> =
-        sets.train.iter().filter(|t| t.object == Some(k as u32) && in_profile(ctx.seed, t)).copied().collect();
+    let own: Vec<Sample> = sets.train_of(Some(k as u32)).into_iter().filter(|t| in_profile(ctx.seed, t)).collect();
     if own.len() <= PROFILE_PIXELS {
         own
     } else {

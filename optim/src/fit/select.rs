@@ -570,7 +570,7 @@ fn glimpse_test(
         // Enough held-out pixels of its own: the test is on them alone, within the test budget.
         super::pixels::cap_per_object(held, s.holdout_pixels as usize, rank).0
     } else {
-        sets.train.iter().filter(mine).chain(&held).copied().collect()
+        sets.train_of(Some(k as u32)).into_iter().chain(held).collect()
     };
     if own.len() < MIN_GLIMPSE_PIXELS {
         return Ok(None);

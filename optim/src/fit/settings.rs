@@ -63,6 +63,13 @@ pub struct ObjectFitSettings {
     /// in all, fewer per row, so that their cost grows linearly with the objects
     /// ([`crate::fit::emission_solve::basis_spp`]).
     pub solve_spp: u32,
+    /// Paths per pixel of the Adam phase's emission solves that a later one replaces (every one but the last; the
+    /// solve before the first iteration too). They only set the emission that Adam's next iterations work
+    /// against, and the last solve, at `solve_spp`, chooses the emitters the refinement starts from. Capped at
+    /// `solve_spp`. On the 1280×1024 house the Adam phase is these solves, whose basis renders of every
+    /// object's column cost about 20 s each at 128 paths (docs/scale/README.md, "Interim emission solves at
+    /// half the paths").
+    pub interim_solve_spp: u32,
     /// Gauss–Newton refinement steps on base colour and emission after the Adam phase.
     pub refine_steps: u32,
     /// Fraction of the valid pixels held out from every fit, used only to decide each object's model.
@@ -115,6 +122,7 @@ impl Default for ObjectFitSettings {
             emission_solve_every: 25,
             solve_pixels: 1024,
             solve_spp: 128,
+            interim_solve_spp: 64,
             refine_steps: 8,
             holdout_fraction: 0.1,
             holdout_pixels: 2048,

@@ -35,6 +35,15 @@ pub(crate) fn solve_options(s: &ObjectFitSettings, unknowns: Unknowns) -> SolveO
     }
 }
 
+/// Paths per Jacobian entry of the Adam phase's emission solve after iteration `it` (0: the solve before the
+/// first iteration): `interim_solve_spp` (at most `solve_spp`) when a later solve of the phase replaces it,
+/// `solve_spp` for the last, whose emitters the refinement starts from
+/// ([`ObjectFitSettings::interim_solve_spp`]).
+pub(crate) fn adam_solve_spp(s: &ObjectFitSettings, it: u32) -> u32 {
+    let replaced = s.emission_solve_every > 0 && it + s.emission_solve_every < s.iterations;
+    if replaced { s.interim_solve_spp.clamp(1, s.solve_spp) } else { s.solve_spp }
+}
+
 /// Solve pixels per object (and for the pixels that see no object) before the rest of `solve_pixels` is shared
 /// in proportion to the objects' pixel counts. Drawn uniformly, 1024 pixels left each object of a 57-object scan
 /// a handful of rows, and its hidden light was lost (emission error 1.0). 32 rows × 3 channels put an object's
@@ -97,6 +106,23 @@ mod tests {
             (0..objects).flat_map(|k| (0..400 + 10 * k).map(move |x| sample(k, x, Some(k)))).collect();
         train.extend((0..400).map(|x| sample(objects, x, None)));
         PixelSets::of_train(train)
+    }
+
+    /// Every emission solve of the Adam phase but its last takes `interim_solve_spp`, never more than
+    /// `solve_spp`; the only solve of a phase without re-solves takes `solve_spp`.
+    #[test]
+    fn only_the_adam_solves_that_a_later_one_replaces_take_the_interim_paths() {
+        let s = ObjectFitSettings::default();
+        let (interim, full) = (s.interim_solve_spp, s.solve_spp);
+        assert!(interim < full);
+        // Iterations 100, a solve every 25: before the first iteration and after 25, 50 and 75.
+        assert_eq!([0, 25, 50, 75].map(|it| adam_solve_spp(&s, it)), [interim, interim, interim, full]);
+        let once = ObjectFitSettings { emission_solve_every: 0, ..s.clone() };
+        assert_eq!(adam_solve_spp(&once, 0), full, "the only solve is not replaced");
+        let rarely = ObjectFitSettings { emission_solve_every: 60, ..s.clone() };
+        assert_eq!([0, 60].map(|it| adam_solve_spp(&rarely, it)), [interim, full]);
+        let few = ObjectFitSettings { solve_spp: 16, ..s.clone() };
+        assert_eq!(adam_solve_spp(&few, 0), 16);
     }
 
     /// A step on the emission draws `solve_pixels` rows or the floors' total, whichever is larger; a joint step
