@@ -54,7 +54,10 @@ const REFINE_TOL: f64 = 0.01;
 /// The refinement is skipped when the profile loss varies over the grid by less than this
 /// fraction of the mean |target| of the object's pixels: roughness then does not matter to the photos (a
 /// diffuse wall's best lobe is weak, its grid spread measured at 0.1–0.3 %; the glossy fixture's floor and
-/// box spread 5–20 %), and the lobe, if any, is judged at the best grid point. Halves the search's cost.
+/// box spread 5–20 %), and the lobe, if any, is judged at the best grid point. Halves the search's cost. The same
+/// holds where the lobe lowers a dielectric's profile below its best Lambert surface's by less than this at every
+/// coarse point ([`lobe_gain`]): the L1 of one render grows with the noise of a sharper lobe, so a diffuse
+/// surface's profile spreads over the grid by more than this while no lobe buys it anything.
 pub const FLAT_PROFILE: f64 = 0.005;
 /// A dielectric's specular strength at or above this is at its bound (the solve's box is [0, 1]; its IRLS
 /// iterate ends on the bound, or within rounding of it, when the photos ask for more): the metal family is
@@ -127,6 +130,11 @@ pub struct ProfilePoint {
     /// most [`HALF_SPECULAR`] instead, from the same render and Jacobian (what the last doubling of a
     /// dielectric's reflection buys); `None` below the bound.
     pub loss_half_specular: Option<f64>,
+    /// For a dielectric (metallic 0): the profile loss of the object's best Lambert surface (specular
+    /// strength 0), from the same render and Jacobian, so that `loss_lambert − loss` is what the lobe buys at
+    /// this roughness ([`lobe_pays`]); `None` for a metal, whose reflection does not depend on the specular
+    /// strength, and for a profile capped at 0 already.
+    pub loss_lambert: Option<f64>,
     /// The root of the unbiased mean squared residual per channel after the same solve, from two independent
     /// value renders at half the paths each ([`profile_unbiased`]); `None` from one render ([`profile`]).
     pub rms: Option<f64>,
@@ -257,6 +265,12 @@ fn profile_at(
         linear::solve(&Problem { hi: &[1.0, 1.0, 1.0, HALF_SPECULAR], ..problem }, DataLoss::L1, &mut half, IRLS_ITERS);
         loss_of(&half)
     });
+    let loss_lambert = (x[idx(k, METALLIC)] == 0.0 && specular_max > 0.0).then(|| {
+        let mut lambert = v0.to_vec();
+        lambert[3] = 0.0;
+        linear::solve(&Problem { hi: &[1.0, 1.0, 1.0, 0.0], ..problem }, DataLoss::L1, &mut lambert, IRLS_ITERS);
+        loss_of(&lambert)
+    });
     Ok(ProfilePoint {
         roughness: r,
         metallic: x[idx(k, METALLIC)],
@@ -264,6 +278,7 @@ fn profile_at(
         base_color: [v[0], v[1], v[2]],
         specular: v[3],
         loss_half_specular,
+        loss_lambert,
         // Each half's residual is the mean's plus half their difference, with opposite signs.
         rms: second.map(|(a, b)| {
             let sum: f64 = (0..3 * m)
@@ -406,7 +421,12 @@ fn search_profile(
     for &i in COARSE.iter().filter(|&&i| i < n_grid) {
         grid[i] = Some(eval(GRID[i], &mut evals)?);
     }
-    let flat = flat(&grid, mean_target, rank);
+    // A lobe that buys nothing over the Lambert surface at any coarse point is not refined either: the L1 of
+    // one render spreads over the grid with the lobe's noise (the sharper the noisier), so a diffuse surface's
+    // profile is rarely flat by that alone, but what the lobe buys changes as smoothly with its width as the
+    // profile does.
+    let flat = flat(&grid, mean_target, rank)
+        || (rank == Rank::L1 && lobe_gain(grid.iter().flatten()).is_some_and(|g| g < FLAT_PROFILE * mean_target));
     if !flat {
         for i in 0..n_grid {
             if grid[i].is_none() {
@@ -539,6 +559,21 @@ fn flat(grid: &[Option<ProfilePoint>], mean_target: f64, rank: Rank) -> bool {
     worst - best < FLAT_PROFILE * mean_target
 }
 
+/// The most that a specular lobe lowers the profile loss below the object's best Lambert surface's at any of the
+/// evaluations `evals` ([`ProfilePoint::loss_lambert`]); `None` when one of them has no Lambert loss (a metal's,
+/// or a profile capped at 0), for which the question does not arise.
+pub fn lobe_gain<'a>(evals: impl IntoIterator<Item = &'a ProfilePoint>) -> Option<f64> {
+    evals.into_iter().try_fold(0.0f64, |most, p| p.loss_lambert.map(|l| most.max(l - p.loss)))
+}
+
+/// Whether a specular lobe buys the object at least `needs` (in the profile loss's units, per channel): at some
+/// evaluation of its search (`evals`) it lowers the profile loss below the best Lambert surface's by that much, or
+/// the search has points without a Lambert loss (a metal family was searched).
+#[must_use]
+pub fn lobe_pays(evals: &[ProfilePoint], needs: f64) -> bool {
+    lobe_gain(evals).is_none_or(|g| g >= needs)
+}
+
 /// The evaluation that `rank` puts lowest.
 fn lowest<'a>(evals: impl IntoIterator<Item = &'a ProfilePoint>, rank: Rank) -> Option<ProfilePoint> {
     evals.into_iter().copied().min_by(|p, q| rank.of(p).total_cmp(&rank.of(q)))
@@ -654,6 +689,7 @@ mod tests {
             base_color: [0.5; 3],
             specular: 0.5,
             loss_half_specular: None,
+            loss_lambert: None,
             rms: None,
         }
     }
@@ -703,6 +739,36 @@ mod tests {
         let (_, evals) =
             search_profile(1.0, 1.0, Rank::L1, |r| Ok(point_at(r, 0.1 + 1e-4 * r))).expect("no render fails");
         assert_eq!(evals.len(), COARSE.len(), "a flat profile is evaluated at the coarse points only");
+    }
+
+    /// A dielectric's profile that spreads over the grid by far more than [`FLAT_PROFILE`] (the L1 of one render
+    /// rises as the lobe sharpens) while its lobe buys less than that over the Lambert surface at every point: it
+    /// is evaluated at the coarse points only, and [`lobe_pays`] says no at that margin. Where the lobe buys the
+    /// margin at one point, or a point has no Lambert loss (a metal's), the search refines and the lobe pays.
+    #[test]
+    fn a_lobe_that_buys_nothing_over_the_lambert_surface_is_not_refined() {
+        let margin = FLAT_PROFILE * 1.0;
+        let noisy = |r: f64, gain: f64| {
+            let loss = 0.1 + 0.05 * (1.0 - r);
+            ProfilePoint { roughness: r, loss, loss_lambert: Some(loss + gain), ..point(0.0, loss) }
+        };
+        let (_, evals) = search_profile(1.0, 1.0, Rank::L1, |r| Ok(noisy(r, 0.5 * margin))).expect("no render fails");
+        assert_eq!(evals.len(), COARSE.len(), "{} evaluations", evals.len());
+        let gain = lobe_gain(&evals).expect("dielectric points");
+        assert!((gain - 0.5 * margin).abs() < 1e-12, "gain {gain}");
+        assert!(!lobe_pays(&evals, margin));
+        assert!(lobe_pays(&evals, 0.4 * margin), "the gain is judged against the margin it is given");
+        // The lobe buys the margin at r = 0.45 alone: refined, and it pays.
+        let gain_at = |r: f64| if (r - GRID[4]).abs() < 1e-9 { 2.0 * margin } else { 0.0 };
+        let (_, evals) = search_profile(1.0, 1.0, Rank::L1, |r| Ok(noisy(r, gain_at(r)))).expect("no render fails");
+        assert!(evals.len() > COARSE.len());
+        assert!(lobe_pays(&evals, margin));
+        // A metal's points carry no Lambert loss: the question does not arise.
+        let metal = |r: f64| ProfilePoint { loss_lambert: None, metallic: 1.0, ..noisy(r, 0.0) };
+        let (_, evals) = search_profile(1.0, 1.0, Rank::L1, |r| Ok(metal(r))).expect("no render fails");
+        assert!(evals.len() > COARSE.len());
+        assert_eq!(lobe_gain(&evals), None);
+        assert!(lobe_pays(&evals, margin));
     }
 
     /// A profile whose L1 carries the render's noise, which grows as the lobe sharpens (here by 0.6 · (1 − r)

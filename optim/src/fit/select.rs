@@ -34,7 +34,7 @@ use super::paired::{
     self, FIRST_LOOK, MIN_GAIN, Statistic, Stop, T_KEEP, cannot_pass, clearly_passes, l1, sequential_lobe_test, target,
 };
 use super::pixels::{PixelSets, Sample};
-use super::roughness::{self, TRIAL_ROUGHNESS, TRIAL_SPECULAR, lobe_test_samples, profile_samples};
+use super::roughness::{self, FLAT_PROFILE, TRIAL_ROUGHNESS, TRIAL_SPECULAR, lobe_test_samples, profile_samples};
 use super::solve::{self, solve_options};
 use super::step_check;
 use super::{FitError, ObjectFitSettings, ObjectModel};
@@ -713,6 +713,7 @@ pub fn choose_models(
         // highlights at t > 3, `object.holdout_pixels` in configs/README.md; a large object's 4096 doubled the
         // test's renders, the largest cost of a 213-object house's object stage).
         let mut xt = x.clone();
+        let mut tested: Vec<bool> = free.to_vec();
         let n_free = free.iter().filter(|&&f| f).count();
         progress.phase("model selection: lobe search, object", n_free as u64, 0);
         for (done, k) in (0..k_count).filter(|&k| free[k]).enumerate() {
@@ -730,15 +731,31 @@ pub fn choose_models(
                 key::SELECT_ROUGHNESS + k as u64,
             )?;
             tracing::debug!(object = k, ?best, evals = evals.len(), "lobe search");
+            progress.set_position(done as u64 + 1);
+            // A lobe that lowers the object's profile loss below its best Lambert surface's by less than the lobe
+            // test's gain needs (per channel: `mean_target` sums the channels) at every roughness searched is not
+            // tested: the held-out gain of a lobe chosen on other pixels is if anything smaller. Nor where it
+            // buys less than the search's own margin on the object's pixels, below which the search calls its
+            // lobe's effect on the photos flat (`roughness::FLAT_PROFILE`). Its alternative stays diffuse.
+            let needs = (FLAT_PROFILE * roughness::mean_target(&samples)).min(MIN_GAIN * mean_target / 3.0);
+            if !roughness::lobe_pays(&evals, needs) {
+                tested[k] = false;
+                why[k].push(format!(
+                    "diffuse: no specular lobe searched lowers its profile L1 below its Lambert surface's by {:.2} % of \
+                     the mean radiance (at most {:.2} %; the lobe test needs {:.1} %)",
+                    100.0 * needs / (mean_target / 3.0),
+                    100.0 * roughness::lobe_gain(&evals).unwrap_or(0.0) / (mean_target / 3.0),
+                    100.0 * MIN_GAIN,
+                ));
+                continue;
+            }
             for c in 0..3 {
                 xt[idx(k, BASE_COLOR + c)] = best.base_color[c];
             }
             xt[idx(k, ROUGHNESS)] = best.roughness;
             xt[idx(k, SPECULAR)] = best.specular;
             xt[idx(k, METALLIC)] = best.metallic;
-            progress.set_position(done as u64 + 1);
         }
-        let tested: Vec<bool> = free.to_vec();
         let verdicts = sequential_lobe_test(
             ctx,
             s,
