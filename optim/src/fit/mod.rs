@@ -25,9 +25,9 @@
 //!    ([`roughness::search_lobe`]) — and kept only
 //!    when it lowers the residual on the other half plus the held-out pixels significantly (paired t > 3 and a
 //!    gain > 0.5 % of the mean radiance; a lobe that lowers the searched half's residual below the best Lambert
-//!    surface's by less than that at every roughness searched is not tested); with lobes kept, the emission of the emitters the refinement left is
-//!    re-solved, unpenalised (or, with `specular_trial_steps` > 0, Gauss–Newton steps re-fit emission and base
-//!    colour). An emission term is kept
+//!    surface's by less than that at every roughness searched is not tested); with lobes kept, the emission of
+//!    the emitters the refinement left is re-solved, unpenalised (or, with `specular_trial_steps` > 0,
+//!    Gauss–Newton steps re-fit emission and base colour). An emission term is kept
 //!    only when it lowers the held-out residual significantly, against the model without it and, for an
 //!    object the photos see, against its best dielectric or metal lobe without emission (an object that
 //!    mirrors a lamp is a metal, not a light). Objects seen in fewer than 16 training pixels are

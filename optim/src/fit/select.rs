@@ -741,8 +741,8 @@ pub fn choose_models(
             if !roughness::lobe_pays(&evals, needs) {
                 tested[k] = false;
                 why[k].push(format!(
-                    "diffuse: no specular lobe searched lowers its profile L1 below its Lambert surface's by {:.2} % of \
-                     the mean radiance (at most {:.2} %; the lobe test needs {:.1} %)",
+                    "diffuse: no specular lobe searched lowers its profile L1 below its Lambert surface's by \
+                     {:.2} % of the mean radiance (at most {:.2} %; the lobe test needs {:.1} %)",
                     100.0 * needs / (mean_target / 3.0),
                     100.0 * roughness::lobe_gain(&evals).unwrap_or(0.0) / (mean_target / 3.0),
                     100.0 * MIN_GAIN,

@@ -41,7 +41,7 @@ pub(crate) fn solve_options(s: &ObjectFitSettings, unknowns: Unknowns) -> SolveO
 /// ([`ObjectFitSettings::interim_solve_spp`]).
 pub(crate) fn adam_solve_spp(s: &ObjectFitSettings, it: u32) -> u32 {
     let replaced = s.emission_solve_every > 0 && it + s.emission_solve_every < s.iterations;
-    if replaced { s.interim_solve_spp.clamp(1, s.solve_spp) } else { s.solve_spp }
+    if replaced { s.interim_solve_spp.min(s.solve_spp) } else { s.solve_spp }
 }
 
 /// Solve pixels per object (and for the pixels that see no object) before the rest of `solve_pixels` is shared
