@@ -221,6 +221,7 @@ fn validate(c: &Config) -> Result<(), Invalid> {
     at_least_one("object.solve_pixels", o.solve_pixels)?;
     at_least_one("object.solve_spp", o.solve_spp)?;
     at_least_one("object.interim_solve_spp", o.interim_solve_spp)?;
+    at_least_one("object.check_spp", o.check_spp)?;
     rule((0.0..0.5).contains(&o.holdout_fraction), "object.holdout_fraction", "in [0, 0.5)", o.holdout_fraction)?;
     at_least_one("object.holdout_spp", o.holdout_spp)?;
     at_least_one("object.holdout_pixels", o.holdout_pixels)?;

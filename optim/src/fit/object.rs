@@ -46,6 +46,7 @@ fn validate(inputs: &FitInputs<'_>) -> Result<(), FitError> {
     positive("solve_pixels", s.solve_pixels)?;
     positive("solve_spp", s.solve_spp)?;
     positive("interim_solve_spp", s.interim_solve_spp)?;
+    positive("check_spp", s.check_spp)?;
     positive("holdout_spp", s.holdout_spp)?;
     positive("holdout_pixels", s.holdout_pixels)?;
     if !(s.lr.is_finite() && s.lr > 0.0) {
@@ -276,7 +277,7 @@ pub fn fit_objects(
                 &start,
                 &mut state.params,
                 &samples,
-                s.solve_spp,
+                solve::check_spp(s),
                 key::REFINE_CHECK + u64::from(it),
             )?;
             if check.fraction < 1.0 || check.held_back() > 0 {

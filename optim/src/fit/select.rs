@@ -116,7 +116,8 @@ impl AveragedSteps {
             solve_step_pinned(ctx, x, &samples, s.solve_spp, key, free, no_emission, &opts)?;
             // Checked like the refinement's steps (`step_check`): unchecked, a re-fit after a dropped
             // emission on Modern Hall took a wall's albedo from 0.89 to 0.11 and an unseen light ×4.
-            let check = step_check::check_step(ctx, &start, x, &samples, s.solve_spp, key + key::SELECT_STEP_CHECK)?;
+            let check =
+                step_check::check_step(ctx, &start, x, &samples, solve::check_spp(s), key + key::SELECT_STEP_CHECK)?;
             if check.fraction < 1.0 || check.held_back() > 0 {
                 tracing::debug!(
                     step,

@@ -44,6 +44,12 @@ pub(crate) fn adam_solve_spp(s: &ObjectFitSettings, it: u32) -> u32 {
     if replaced { s.interim_solve_spp.min(s.solve_spp) } else { s.solve_spp }
 }
 
+/// Paths per pixel of a Gauss–Newton step's check ([`super::step_check::check_step`]): `check_spp`, at most
+/// `solve_spp` ([`ObjectFitSettings::check_spp`]).
+pub(crate) fn check_spp(s: &ObjectFitSettings) -> u32 {
+    s.check_spp.min(s.solve_spp)
+}
+
 /// Solve pixels per object (and for the pixels that see no object) before the rest of `solve_pixels` is shared
 /// in proportion to the objects' pixel counts. Drawn uniformly, 1024 pixels left each object of a 57-object scan
 /// a handful of rows, and its hidden light was lost (emission error 1.0). 32 rows × 3 channels put an object's
@@ -123,6 +129,18 @@ mod tests {
         assert_eq!([0, 60].map(|it| adam_solve_spp(&rarely, it)), [interim, full]);
         let few = ObjectFitSettings { solve_spp: 16, ..s.clone() };
         assert_eq!(adam_solve_spp(&few, 0), 16);
+    }
+
+    /// A step's check takes `check_spp` paths, never more than the solve's own `solve_spp`.
+    #[test]
+    fn the_step_check_takes_its_own_paths_and_never_more_than_the_solve() {
+        let s = ObjectFitSettings::default();
+        assert!(s.check_spp < s.solve_spp);
+        assert_eq!(check_spp(&s), s.check_spp);
+        let few = ObjectFitSettings { solve_spp: 16, ..s.clone() };
+        assert_eq!(check_spp(&few), 16);
+        let all = ObjectFitSettings { check_spp: 512, ..s.clone() };
+        assert_eq!(check_spp(&all), s.solve_spp);
     }
 
     /// A step on the emission draws `solve_pixels` rows or the floors' total, whichever is larger; a joint step
