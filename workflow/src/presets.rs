@@ -87,7 +87,7 @@ impl Quality {
                 ("object.solve_pixels", Int(1024)),
                 ("object.solve_spp", Int(128)),
                 ("object.refine_steps", Int(8)),
-                ("object.holdout_spp", Int(64)),
+                ("object.holdout_spp", Int(128)),
                 ("object.try_specular", Bool(true)),
                 ("images.downscale", Int(1)),
             ],

@@ -102,7 +102,7 @@ pub fn sweep_points(base: &FitSetup, quick: bool) -> Vec<SweepPoint> {
     for v in [2, 4] {
         add("max_depth", format!("max_depth={v}"), &move |s| s.max_depth = v);
     }
-    add("holdout_spp", "holdout_spp=32".into(), &|s| s.object.holdout_spp = 32);
+    add("holdout_spp", "holdout_spp=64".into(), &|s| s.object.holdout_spp = 64);
     add("try_specular", "try_specular=false".into(), &|s| s.object.try_specular = false);
     add("solve_spp", "solve_spp=32".into(), &|s| s.object.solve_spp = 32);
     add("solve_pixels", "solve_pixels=256".into(), &|s| s.object.solve_pixels = 256);
